@@ -1,0 +1,17 @@
+"""Parametric BRDF models: one module per family, all registered by name.
+
+``MODELS`` maps spec names to classes (``brdf-fit models`` lists them); models add with ``+``.
+"""
+
+from . import fresnel, lambert, microfacet, mirror  # noqa: F401  (registration)
+from ._registry import FRESNEL, MODELS, register
+from .base import Choice, Compiled, Component, Model, Nested, Param, Sum
+from .fresnel import Conductor, Dielectric, NoFresnel, Schlick
+from .lambert import Lambert
+from .microfacet import BeckmannModel as Beckmann
+from .microfacet import GGXModel as GGX
+from .mirror import Mirror
+
+__all__ = ["MODELS", "FRESNEL", "register", "Param", "Choice", "Nested", "Component", "Model",
+           "Sum", "Compiled", "Lambert", "Mirror", "GGX", "Beckmann", "NoFresnel", "Schlick",
+           "Dielectric", "Conductor"]

@@ -1,0 +1,45 @@
+"""Registries of named components: BRDF model families and Fresnel terms.
+
+As in colour-science, a family is a plain class registered under a name and aliases; the spec
+parser, ``brdf-fit models`` and JSON loading look names up here.
+"""
+
+from ..errors import SpecError
+
+
+class Registry:
+    """Name -> class, with aliases; lookups of unknown names list the valid ones."""
+
+    def __init__(self, what):
+        self.what = what
+        self._classes = {}
+        self._aliases = {}
+
+    def register(self, cls):
+        """Class decorator: add ``cls`` under ``cls.name`` and ``cls.aliases``."""
+        for key in (cls.name, *cls.aliases):
+            if key in self._aliases and self._aliases[key] != cls.name:
+                raise ValueError(f"{self.what} name {key!r} is already registered")
+            self._aliases[key] = cls.name
+        self._classes[cls.name] = cls
+        return cls
+
+    def get(self, name):
+        key = self._aliases.get(name)
+        if key is None:
+            raise SpecError(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}")
+        return self._classes[key]
+
+    def names(self):
+        return list(self._classes)
+
+    def classes(self):
+        return list(self._classes.values())
+
+    def __contains__(self, name):
+        return name in self._aliases
+
+
+MODELS = Registry("model")
+FRESNEL = Registry("Fresnel term")
+register = MODELS.register

@@ -1,0 +1,520 @@
+"""Parameter declarations, the model base class and additive mixtures.
+
+A model family declares its parameters once (:class:`Param`, :class:`Choice`, :class:`Nested`);
+that declaration drives spec parsing and printing, validation, JSON, flat ``"lobe.param"`` names,
+and the bounds and priors that fitting uses. Evaluation, sampling and the albedo quadrature run in
+compiled kernels (:mod:`brdf.models._kernels`) that every model, sums included, goes through.
+"""
+
+import math
+
+import numpy as np
+
+from ..errors import InputError, ParameterError, SpecError
+
+__all__ = ["Param", "Choice", "Nested", "Component", "Model", "Sum", "Compiled"]
+
+
+class Param:
+    """A numeric parameter.
+
+    Parameters
+    ----------
+    name : str
+        Name in specs, JSON and flat names.
+    default : float or None
+        Value when the spec omits it; ``None`` makes the parameter optional, and then it takes
+        the value of ``fallback`` (another parameter of the same model) when packed for kernels.
+    bounds : (float, float)
+        Closed interval of valid values; fitting uses it as the box.
+    units : str
+        Units shown in ``brdf-fit models`` and reports (``""`` for dimensionless).
+    per_channel : bool
+        Whether the value may hold one entry per channel (1, 3 or n wavelengths).
+    prior : {"linear", "log"}
+        Scale of the uniform prior used by MCMC and of multi-start draws.
+    doc : str
+        One line shown in help.
+    aliases : tuple of str
+        Other names accepted in specs.
+    fallback : str or None
+        For optional parameters: the parameter whose value stands in when this one is not given.
+    fit_bounds : (float, float) or None
+        A narrower box for fitting where ``bounds`` is unbounded (e.g. Phong exponents).
+    """
+
+    kind = "number"
+
+    def __init__(self, name, default, bounds=(-math.inf, math.inf), units="", per_channel=False,
+                 prior="linear", doc="", aliases=(), fallback=None, fit_bounds=None):
+        self.name, self.default, self.bounds = name, default, tuple(float(b) for b in bounds)
+        self.units, self.per_channel, self.prior, self.doc = units, per_channel, prior, doc
+        self.aliases, self.fallback = tuple(aliases), fallback
+        self.fit_bounds = tuple(fit_bounds) if fit_bounds is not None else self.bounds
+
+    def coerce(self, value, where):
+        """Validated float array (shape ``()`` or ``(C,)``) from a spec or Python value."""
+        arr = np.array(value, dtype=float)
+        if arr.ndim > 1 or (arr.ndim == 1 and (not self.per_channel or arr.size == 0)):
+            what = "a number or a list of per-channel numbers" if self.per_channel else "a number"
+            raise ParameterError(f"{where}: {self.name} must be {what}, got {value!r}")
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(f"{where}: {self.name} must be finite, got {value!r}")
+        lo, hi = self.bounds
+        if np.any(arr < lo) or np.any(arr > hi):
+            raise ParameterError(f"{where}: {self.name}={_fmt(arr)} is outside its bounds "
+                                 f"[{_fmt(lo)}, {_fmt(hi)}]")
+        if arr.ndim == 1 and arr.size == 1:
+            arr = arr.reshape(())
+        arr.setflags(write=False)
+        return arr
+
+    def describe(self):
+        """Dictionary for ``brdf-fit models --json`` and help text."""
+        return {"name": self.name, "kind": self.kind, "default": self.default,
+                "bounds": list(self.bounds), "units": self.units,
+                "per_channel": self.per_channel, "prior": self.prior, "doc": self.doc,
+                "aliases": list(self.aliases)}
+
+
+class Choice:
+    """An option chosen by name among fixed strings (e.g. ``variant=gmd``)."""
+
+    kind = "choice"
+
+    def __init__(self, name, default, choices, doc="", aliases=()):
+        self.name, self.default, self.choices = name, default, tuple(choices)
+        self.doc, self.aliases = doc, tuple(aliases)
+
+    def coerce(self, value, where):
+        if not isinstance(value, str) or value not in self.choices:
+            raise ParameterError(f"{where}: {self.name} must be one of "
+                                 f"{', '.join(self.choices)}; got {value!r}")
+        return value
+
+    def describe(self):
+        return {"name": self.name, "kind": self.kind, "default": self.default,
+                "choices": list(self.choices), "doc": self.doc, "aliases": list(self.aliases)}
+
+
+class Nested:
+    """A parameter whose value is a component of another registry (e.g. a Fresnel term)."""
+
+    kind = "component"
+
+    def __init__(self, name, default, registry, doc="", aliases=()):
+        self.name, self.default, self.registry = name, default, registry
+        self.doc, self.aliases = doc, tuple(aliases)
+
+    def coerce(self, value, where):
+        from ..spec import parse_component
+        if isinstance(value, str):
+            value = parse_component(value, self.registry)
+        elif isinstance(value, dict) and "model" in value:
+            value = self.registry.get(value["model"])(**value.get("params", {}))
+        if not isinstance(value, Component) or value.name not in self.registry.names():
+            raise ParameterError(f"{where}: {self.name} must be one of "
+                                 f"{', '.join(self.registry.names())}; got {value!r}")
+        return value
+
+    def describe(self):
+        return {"name": self.name, "kind": self.kind, "default": self.default,
+                "choices": self.registry.names(), "doc": self.doc, "aliases": list(self.aliases)}
+
+
+def _fmt(x):
+    """Shortest round-tripping text of a number or a per-channel array."""
+    arr = np.asarray(x, dtype=float)
+    if arr.ndim == 0:
+        v = float(arr)
+        return repr(int(v)) if v.is_integer() and abs(v) < 1e15 else repr(v)
+    return "[" + ",".join(_fmt(v) for v in arr) + "]"
+
+
+class Component:
+    """Something with declared parameters that prints as a spec: a model or a Fresnel term."""
+
+    name = ""
+    aliases = ()
+    PARAMS = ()
+    citation = ""
+    summary = ""
+
+    def __init__(self, *args, **kwargs):
+        decls = self.PARAMS
+        if len(args) > len(decls):
+            raise SpecError(f"{self.name}: takes at most {len(decls)} positional values, "
+                            f"got {len(args)}")
+        given = dict(zip((d.name for d in decls), args))
+        for key, value in kwargs.items():
+            decl = self.declaration(key)
+            if decl.name in given:
+                raise SpecError(f"{self.name}: {decl.name} is given twice")
+            given[decl.name] = value
+        values = {}
+        for decl in decls:
+            where = self.name
+            if decl.name in given:
+                values[decl.name] = decl.coerce(given[decl.name], where)
+            elif decl.default is not None:
+                values[decl.name] = decl.coerce(decl.default, where)
+        self._values = values
+        self._check()
+
+    def _check(self):
+        """Cross-parameter validation; families override it (e.g. channel counts)."""
+
+    @classmethod
+    def declaration(cls, key):
+        """The declaration named ``key`` (or one of its aliases)."""
+        for decl in cls.PARAMS:
+            if key == decl.name or key in decl.aliases:
+                return decl
+        names = ", ".join(d.name for d in cls.PARAMS) or "none"
+        raise SpecError(f"{cls.name}: unknown parameter {key!r}; parameters: {names}")
+
+    @property
+    def values(self):
+        """Parameter values as given or defaulted: arrays, choice strings or components."""
+        return dict(self._values)
+
+    def __getitem__(self, name):
+        return self._values[self.declaration(name).name]
+
+    def get(self, name, default=None):
+        decl = self.declaration(name)
+        return self._values.get(decl.name, default)
+
+    def replace(self, **changes):
+        """A copy with some parameter values changed (validated like a new instance)."""
+        merged = {k: v for k, v in self._values.items()}
+        for key, value in changes.items():
+            merged[self.declaration(key).name] = value
+        return type(self)(**merged)
+
+    @property
+    def channels(self):
+        """Number of channels the per-channel parameters hold (1 when all are scalar)."""
+        counts = {1}
+        for decl in self.PARAMS:
+            value = self._values.get(decl.name)
+            if isinstance(value, Component):
+                counts.add(value.channels)
+            elif isinstance(decl, Param) and value is not None and value.ndim == 1:
+                counts.add(value.size)
+        counts.discard(1)
+        if len(counts) > 1:
+            raise ParameterError(f"{self.name}: per-channel parameters disagree on the number of "
+                                 f"channels ({', '.join(map(str, sorted(counts)))})")
+        return counts.pop() if counts else 1
+
+    def __str__(self):
+        parts = []
+        for decl in self.PARAMS:
+            if decl.name not in self._values:
+                continue
+            value = self._values[decl.name]
+            if isinstance(value, Component):
+                text = str(value)
+                if text == decl.default:
+                    continue  # options left at their defaults keep specs short
+            elif isinstance(value, str):
+                text = value
+                if text == decl.default:
+                    continue
+            else:
+                text = _fmt(value)
+            parts.append(f"{decl.name}={text}")
+        return f"{self.name}({', '.join(parts)})" if parts else self.name
+
+    def __repr__(self):
+        return f"brdf.parse({str(self)!r})"
+
+    def __eq__(self, other):
+        if type(self) is not type(other) or self._values.keys() != other._values.keys():
+            return False
+        for key, value in self._values.items():
+            theirs = other._values[key]
+            if isinstance(value, np.ndarray):
+                if not (isinstance(theirs, np.ndarray) and value.shape == theirs.shape
+                        and np.array_equal(value, theirs)):
+                    return False
+            elif value != theirs:
+                return False
+        return True
+
+    __hash__ = None
+
+    def to_dict(self):
+        """JSON-ready description: ``{"model": name, "params": {...}}``."""
+        params = {}
+        for key, value in self._values.items():
+            if isinstance(value, Component):
+                params[key] = value.to_dict()
+            elif isinstance(value, np.ndarray):
+                params[key] = value.tolist()
+            else:
+                params[key] = value
+        return {"model": self.name, "params": params}
+
+    def flat(self, prefix=""):
+        """Numeric parameters under flat names (``"alpha"``, ``"albedo[1]"``, ``"fresnel.f0"``)."""
+        out = {}
+        for decl in self.PARAMS:
+            value = self._values.get(decl.name)
+            if isinstance(value, Component):
+                out.update(value.flat(f"{prefix}{decl.name}."))
+            elif isinstance(decl, Param) and value is not None:
+                if value.ndim == 0:
+                    out[f"{prefix}{decl.name}"] = float(value)
+                else:
+                    out.update({f"{prefix}{decl.name}[{i}]": float(v)
+                                for i, v in enumerate(value)})
+        return out
+
+    def _pack_value(self, decl, nch):
+        """Kernel layout of one parameter: per-channel -> nch floats, scalar -> 1, choice -> index."""
+        value = self._values.get(decl.name)
+        if value is None and isinstance(decl, Param):
+            value = self._values[decl.fallback]
+        if isinstance(decl, Choice):
+            return [float(decl.choices.index(value))]
+        if isinstance(value, Component):
+            return value.pack(nch)
+        if decl.per_channel:
+            return list(np.broadcast_to(value, (nch,)).astype(float))
+        return [float(value)]
+
+    def pack(self, nch):
+        """Flat float64 parameter block read by this family's kernels, declaration order."""
+        out = []
+        for decl in self.PARAMS:
+            out.extend(self._pack_value(decl, nch))
+        return out
+
+
+class Compiled:
+    """What the kernels see of a model: lobe kinds, parameter offsets, packed parameters."""
+
+    __slots__ = ("kinds", "offsets", "params", "nch")
+
+    def __init__(self, kinds, blocks, nch):
+        self.kinds = np.asarray(kinds, dtype=np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum([len(b) for b in blocks])]).astype(np.int64)
+        self.params = np.asarray([v for b in blocks for v in b], dtype=np.float64)
+        self.nch = int(nch)
+
+    @property
+    def args(self):
+        return self.kinds, self.offsets, self.params, self.nch
+
+
+def _directions(x, name):
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} holds NaN or infinite values")
+    return arr
+
+
+def _flat_pair(wi, wo):
+    wi = _directions(wi, "wi")
+    wo = _directions(wo, "wo")
+    shape = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
+    wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
+    wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))
+    return wi, wo, shape
+
+
+def gauss_legendre_unit(n):
+    """Nodes ``(n*n, 2)`` and weights ``(n*n,)`` of the product Gauss-Legendre rule on [0,1]^2."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    x = 0.5 * (x + 1.0)
+    w = 0.5 * w
+    u1, u2 = np.meshgrid(x, x, indexing="ij")
+    return np.stack([u1.ravel(), u2.ravel()], -1), np.outer(w, w).ravel()
+
+
+class Model(Component):
+    """A BRDF: ``eval``, ``sample``, ``pdf`` and ``albedo`` over arrays of directions.
+
+    Subclasses are lobe families; they set ``name``, ``PARAMS``, ``citation`` and the ``kind``
+    their kernels are dispatched on. Directions are unit vectors in the local shading frame
+    (z = normal) shaped ``(..., 3)``, both pointing away from the surface.
+    """
+
+    kind = -1
+    #: True for families that conserve energy for every valid parameter value.
+    energy_conserving = True
+    #: True for families that obey Helmholtz reciprocity.
+    reciprocal = True
+    #: True for delta lobes (eval is 0; all the energy is in ``sample``).
+    delta = False
+    #: True when f depends on the azimuth of wi (anisotropic).
+    anisotropic = False
+
+    # -- composition ---------------------------------------------------------------------------
+    def __add__(self, other):
+        if not isinstance(other, Model):
+            return NotImplemented
+        return Sum(list(self.lobes) + list(other.lobes))
+
+    @property
+    def lobes(self):
+        """The lobes of this model (itself for a single lobe)."""
+        return (self,)
+
+    @property
+    def params(self):
+        """Every numeric parameter under its flat ``"lobe.param"`` name."""
+        return {f"{self.name}.{k}": v for k, v in self.flat().items()}
+
+    @property
+    def is_anisotropic(self):
+        return self.anisotropic
+
+    def compile(self, nch=None):
+        """Kernel representation of this model with ``nch`` channels (default: its own)."""
+        nch = self.channels if nch is None else nch
+        return Compiled([lobe.kind for lobe in self.lobes],
+                        [lobe.pack(nch) for lobe in self.lobes], nch)
+
+    def _compiled(self):
+        cached = self.__dict__.get("_compiled_cache")
+        if cached is None:
+            cached = self.compile()
+            self.__dict__["_compiled_cache"] = cached
+        return cached
+
+    # -- evaluation ----------------------------------------------------------------------------
+    def eval(self, wi, wo):
+        """BRDF value f_r(wi, wo) in 1/sr without the cosine, shaped ``(..., C)``."""
+        from . import _kernels
+        wi, wo, shape = _flat_pair(wi, wo)
+        c = self._compiled()
+        out = np.zeros((wi.shape[0], c.nch))
+        _kernels.eval_array(*c.args, wi, wo, out)
+        return out.reshape(shape + (c.nch,))
+
+    def pdf(self, wi, wo):
+        """Solid-angle density of :meth:`sample` at ``wo``, shaped ``(...)``."""
+        from . import _kernels
+        wi, wo, shape = _flat_pair(wi, wo)
+        out = np.empty(wi.shape[0])
+        _kernels.pdf_array(*self._compiled().args, wi, wo, out)
+        return out.reshape(shape)
+
+    def sample(self, wi, u):
+        """Draw ``wo`` for each ``wi`` from uniform numbers ``u`` shaped ``(..., 2)``.
+
+        Returns ``(wo, pdf)``; ``pdf`` is 0 where the sample is invalid (below the horizon) and
+        ``inf`` where a delta lobe was chosen.
+        """
+        wo, pdf, _ = self.sample_weighted(wi, u)
+        return wo, pdf
+
+    def sample_weighted(self, wi, u):
+        """Like :meth:`sample`, also returning the weight ``f cos(theta_o) / pdf`` ``(..., C)``.
+
+        For a delta lobe the weight is its reflectance divided by the probability of picking it.
+        """
+        from . import _kernels
+        wi = _directions(wi, "wi")
+        u = np.asarray(u, dtype=np.float64)
+        if u.shape[-1:] != (2,):
+            raise InputError(f"u must be shaped (..., 2), got shape {u.shape}")
+        if np.any(~np.isfinite(u)) or np.any(u < 0.0) or np.any(u >= 1.0):
+            raise InputError("u must hold numbers in [0, 1)")
+        shape = np.broadcast_shapes(wi.shape[:-1], u.shape[:-1])
+        wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
+        u = np.ascontiguousarray(np.broadcast_to(u, shape + (2,)).reshape(-1, 2))
+        c = self._compiled()
+        wo = np.empty_like(wi)
+        pdf = np.empty(wi.shape[0])
+        weight = np.empty((wi.shape[0], c.nch))
+        _kernels.sample_array(*c.args, wi, u, wo, pdf, weight)
+        return wo.reshape(shape + (3,)), pdf.reshape(shape), weight.reshape(shape + (c.nch,))
+
+    def albedo(self, wi, order=128, return_error=False):
+        """Directional albedo a(wi) = integral of f cos(theta_o) over the hemisphere, ``(..., C)``.
+
+        Each lobe is integrated in the unit square of its own importance sampler (change of
+        variables wo = warp(u), so the integrand is f cos / pdf) by an ``order`` x ``order``
+        Gauss-Legendre product rule; a sharp lobe is then as easy as a broad one. The error
+        estimate (with ``return_error``) is the difference to the rule of half the order.
+        """
+        from . import _kernels
+        wi = _directions(wi, "wi")
+        shape = wi.shape[:-1]
+        flat = np.ascontiguousarray(wi.reshape(-1, 3))
+        c = self._compiled()
+        results = []
+        for n in ((order, order // 2) if return_error else (order,)):
+            nodes, weights = gauss_legendre_unit(n)
+            out = np.zeros((flat.shape[0], c.nch))
+            _kernels.albedo_array(*c.args, flat, nodes, weights, out)
+            results.append(out.reshape(shape + (c.nch,)))
+        if return_error:
+            return results[0], np.abs(results[0] - results[1])
+        return results[0]
+
+
+class Sum(Model):
+    """An additive mixture of lobes; sampling picks a lobe in proportion to its albedo estimate."""
+
+    name = "sum"
+
+    def __init__(self, lobes):
+        lobes = list(lobes)
+        if not lobes or not all(isinstance(lobe, Model) and not isinstance(lobe, Sum)
+                                for lobe in lobes):
+            raise SpecError("a sum needs one or more lobes")
+        self._lobes = tuple(lobes)
+        self._values = {}
+        _ = self.channels  # validates that channel counts agree
+
+    @property
+    def lobes(self):
+        return self._lobes
+
+    @property
+    def channels(self):
+        counts = {lobe.channels for lobe in self._lobes} - {1}
+        if len(counts) > 1:
+            raise ParameterError("lobes of a sum disagree on the number of channels "
+                                 f"({', '.join(map(str, sorted(counts)))})")
+        return counts.pop() if counts else 1
+
+    energy_conserving = property(lambda self: all(l.energy_conserving for l in self._lobes))
+    reciprocal = property(lambda self: all(l.reciprocal for l in self._lobes))
+    delta = property(lambda self: all(l.delta for l in self._lobes))
+    is_anisotropic = property(lambda self: any(l.anisotropic for l in self._lobes))
+
+    def lobe_names(self):
+        """Flat-name prefix of each lobe: its name, or name and index when a name repeats."""
+        names = [lobe.name for lobe in self._lobes]
+        return [n if names.count(n) == 1 else f"{n}{i}" for i, n in enumerate(names)]
+
+    @property
+    def params(self):
+        out = {}
+        for prefix, lobe in zip(self.lobe_names(), self._lobes):
+            out.update({f"{prefix}.{k}": v for k, v in lobe.flat().items()})
+        return out
+
+    def __str__(self):
+        return " + ".join(str(lobe) for lobe in self._lobes)
+
+    def __eq__(self, other):
+        return isinstance(other, Sum) and self._lobes == other._lobes
+
+    __hash__ = None
+
+    def to_dict(self):
+        return {"sum": [lobe.to_dict() for lobe in self._lobes]}
+
+    def replace(self, **changes):
+        raise SpecError("replace() works on single lobes; rebuild the sum from its lobes")
+
+

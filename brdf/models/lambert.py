@@ -1,0 +1,54 @@
+"""Ideal diffuse reflection: f = rho / pi (Lambert 1760, Photometria)."""
+
+import math
+
+from .._jit import kernel
+from ..sampling import square_to_cosine_hemisphere
+from . import _kinds
+from ._registry import register
+from .base import Model, Param
+
+INV_PI = 1.0 / math.pi
+
+
+@register
+class Lambert(Model):
+    """Lambertian (ideal diffuse) reflector with per-channel albedo ``rho``."""
+
+    name = "lambert"
+    aliases = ("diffuse", "lambertian")
+    summary = "ideal diffuse, f = albedo / pi"
+    citation = "Lambert 1760, Photometria; f = rho / pi"
+    kind = _kinds.LAMBERT
+    PARAMS = (Param("albedo", 0.5, (0.0, 1.0), per_channel=True, aliases=("rho", "rho_d", "kd"),
+                    doc="directional-hemispherical reflectance", fit_bounds=(0.0, 1.0)),)
+
+
+@kernel
+def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    if iz > 0.0 and oz > 0.0:
+        for c in range(nch):
+            out[k, c] += q[c] * INV_PI  # f = rho / pi
+
+
+@kernel
+def sample_(q, nch, ix, iy, iz, u1, u2):
+    x, y, z = square_to_cosine_hemisphere(u1, u2)
+    if iz <= 0.0 or z <= 0.0:
+        return x, y, z, 0.0
+    return x, y, z, z * INV_PI
+
+
+@kernel
+def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
+    if iz <= 0.0 or oz <= 0.0:
+        return 0.0
+    return oz * INV_PI
+
+
+@kernel
+def hint_(q, nch, ix, iy, iz):
+    s = 0.0
+    for c in range(nch):
+        s += q[c]
+    return s / nch if iz > 0.0 else 0.0

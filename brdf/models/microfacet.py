@@ -1,0 +1,264 @@
+"""Microfacet lobes in the Cook-Torrance form with GGX or Beckmann normals.
+
+f = ks F(wi.h) D(h) G2(wi, wo) / (4 cos(theta_i) cos(theta_o))  (Walter et al. 2007, eq. 20)
+
+D is anisotropic with roughness ``alpha`` along the tangent x and ``alpha_y`` along y (isotropic
+when ``alpha_y`` is not given). G2 is Smith's masking-shadowing, separable G1(wi) G1(wo) by
+default (the form in Walter et al. 2007 and Mitsuba 3) or height-correlated
+1 / (1 + Lambda(wi) + Lambda(wo)) (Heitz 2014, "Understanding the Masking-Shadowing Function in
+Microfacet-Based BRDFs", eq. 99). Sampling draws visible normals (Heitz 2018 for GGX; Heitz &
+d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
+"""
+
+import math
+
+from .._jit import kernel
+from ..sampling import reflect_about
+from . import _kinds
+from ._registry import FRESNEL, register
+from .base import Choice, Model, Nested, Param
+from .fresnel import fresnel
+
+GGX, BECKMANN = 0, 1
+SQRT_PI = math.sqrt(math.pi)
+
+
+class Microfacet(Model):
+    """Shared parameters of the GGX and Beckmann lobes (kernel layout in declaration order)."""
+
+    distribution = GGX
+    PARAMS = (
+        Param("ks", 1.0, (0.0, math.inf), per_channel=True, aliases=("rho_s",),
+              doc="specular scale", fit_bounds=(0.0, 2.0)),
+        Param("alpha", 0.1, (1e-4, 4.0), prior="log", aliases=("alpha_x",),
+              doc="roughness (along the tangent x when alpha_y is given)", fit_bounds=(1e-3, 1.5)),
+        Param("alpha_y", None, (1e-4, 4.0), prior="log", fallback="alpha",
+              doc="roughness along the bitangent y (default: alpha, isotropic)",
+              fit_bounds=(1e-3, 1.5)),
+        Choice("masking", "separable", ("separable", "height-correlated"),
+               doc="Smith masking-shadowing: G1(wi) G1(wo), or height-correlated"),
+        Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_d)"),
+    )
+
+    @property
+    def anisotropic(self):
+        return "alpha_y" in self._values and float(self["alpha_y"]) != float(self["alpha"])
+
+
+@register
+class GGXModel(Microfacet):
+    name = "ggx"
+    aliases = ("trowbridge-reitz", "cook-torrance-ggx")
+    summary = "Cook-Torrance microfacet lobe with GGX normals"
+    citation = ("Walter et al. 2007, Microfacet Models for Refraction through Rough Surfaces, "
+                "eqs. 20, 33, 34; anisotropy and sampling: Heitz 2014 eq. 85-86, Heitz 2018")
+    kind = _kinds.GGX
+    distribution = GGX
+
+
+@register
+class BeckmannModel(Microfacet):
+    name = "beckmann"
+    aliases = ("cook-torrance",)
+    summary = "Cook-Torrance microfacet lobe with Beckmann normals"
+    citation = ("Cook & Torrance 1982; Walter et al. 2007 eqs. 20, 25, 27; sampling: "
+                "Heitz & d'Eon 2014, Importance Sampling Microfacet-Based BSDFs using the "
+                "Distribution of Visible Normals")
+    kind = _kinds.BECKMANN
+    distribution = BECKMANN
+
+
+# --- distributions ---------------------------------------------------------------------------
+
+@kernel
+def ndf(dist, ax, ay, hx, hy, hz):
+    """Normal distribution D(h) in 1/sr, normalised so that the integral of D cos = 1."""
+    if hz <= 0.0:
+        return 0.0
+    sx = hx / ax
+    sy = hy / ay
+    if dist == GGX:
+        t = sx * sx + sy * sy + hz * hz
+        return 1.0 / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
+    hz2 = hz * hz
+    return math.exp(-(sx * sx + sy * sy) / hz2) / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+
+
+@kernel
+def smith_lambda(dist, ax, ay, x, y, z):
+    """Smith's Lambda for a direction (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
+    if z <= 0.0:
+        return math.inf
+    a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
+    if a2t2 <= 0.0:
+        return 0.0
+    if dist == GGX:
+        return 0.5 * (math.sqrt(1.0 + a2t2) - 1.0)
+    a = 1.0 / math.sqrt(a2t2)
+    return 0.5 * (math.erf(a) - 1.0) + math.exp(-a * a) / (2.0 * a * SQRT_PI)
+
+
+@kernel
+def erfinv(y):
+    """Inverse error function: Giles 2010, "Approximating the erfinv function", single-precision
+    branch, refined to double precision by two Newton steps on erf(x) = y."""
+    w = -math.log((1.0 - y) * (1.0 + y))
+    if w < 5.0:
+        w -= 2.5
+        p = 2.81022636e-08
+        p = 3.43273939e-07 + p * w
+        p = -3.5233877e-06 + p * w
+        p = -4.39150654e-06 + p * w
+        p = 0.00021858087 + p * w
+        p = -0.00125372503 + p * w
+        p = -0.00417768164 + p * w
+        p = 0.246640727 + p * w
+        p = 1.50140941 + p * w
+    else:
+        w = math.sqrt(w) - 3.0
+        p = -0.000200214257
+        p = 0.000100950558 + p * w
+        p = 0.00134934322 + p * w
+        p = -0.00367342844 + p * w
+        p = 0.00573950773 + p * w
+        p = -0.0076224613 + p * w
+        p = 0.00943887047 + p * w
+        p = 1.00167406 + p * w
+        p = 2.83297682 + p * w
+    x = p * y
+    for _ in range(2):
+        x -= (math.erf(x) - y) / (2.0 / SQRT_PI * math.exp(-x * x))
+    return x
+
+
+@kernel
+def beckmann_visible_slope_x(mu, u):
+    """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu.
+
+    Inverts C(x) = mu sqrt(pi)/2 (1 + erf x) + exp(-x^2)/2 on x <= mu, the CDF of the density
+    (mu - x) exp(-x^2) (Heitz & d'Eon 2014, section 5.2), by safeguarded Newton iteration.
+    """
+    total = mu * SQRT_PI * 0.5 * (1.0 + math.erf(mu)) + 0.5 * math.exp(-mu * mu)
+    target = u * total
+    lo, hi = -6.0, min(mu, 6.0)
+    x = min(max(erfinv(2.0 * u - 1.0), lo), hi)
+    for _ in range(60):
+        c = mu * SQRT_PI * 0.5 * (1.0 + math.erf(x)) + 0.5 * math.exp(-x * x) - target
+        if c > 0.0:
+            hi = x
+        else:
+            lo = x
+        dc = (mu - x) * math.exp(-x * x)
+        step_ok = dc > 0.0
+        if step_ok:
+            xn = x - c / dc
+            step_ok = lo < xn < hi
+        xn = xn if step_ok else 0.5 * (lo + hi)
+        if abs(xn - x) < 1e-12:
+            return xn
+        x = xn
+    return x
+
+
+@kernel
+def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
+    """A microfacet normal drawn from D_wi(h) = G1(wi) max(0, wi.h) D(h) / cos(theta_i)."""
+    vx = ax * ix  # stretch to unit roughness
+    vy = ay * iy
+    inv = 1.0 / math.sqrt(vx * vx + vy * vy + iz * iz)
+    vx *= inv
+    vy *= inv
+    vz = iz * inv
+    if dist == GGX:  # Heitz 2018, JCGT 7(4), listing 1
+        lensq = vx * vx + vy * vy
+        if lensq > 0.0:
+            il = 1.0 / math.sqrt(lensq)
+            t1x, t1y = -vy * il, vx * il
+        else:
+            t1x, t1y = 1.0, 0.0
+        t2x, t2y, t2z = -vz * t1y, vz * t1x, vx * t1y - vy * t1x  # T2 = cross(V, T1)
+        r = math.sqrt(u1)
+        phi = 2.0 * math.pi * u2
+        p1 = r * math.cos(phi)
+        p2 = r * math.sin(phi)
+        s = 0.5 * (1.0 + vz)
+        p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
+        pz = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))
+        nx = p1 * t1x + p2 * t2x + pz * vx
+        ny = p1 * t1y + p2 * t2y + pz * vy
+        nz = p2 * t2z + pz * vz
+        mx, my, mz = ax * nx, ay * ny, max(0.0, nz)
+    else:  # Heitz & d'Eon 2014, section 5.2: standard visible slopes, rotate, unstretch
+        sin_t = math.sqrt(vx * vx + vy * vy)
+        if sin_t < 1e-9:
+            sx = erfinv(2.0 * u1 - 1.0)
+            cphi, sphi = 1.0, 0.0
+        else:
+            sx = beckmann_visible_slope_x(vz / sin_t, u1)
+            cphi, sphi = vx / sin_t, vy / sin_t
+        sy = erfinv(2.0 * u2 - 1.0)
+        mx = -(cphi * sx - sphi * sy) * ax
+        my = -(sphi * sx + cphi * sy) * ay
+        mz = 1.0
+    inv = 1.0 / math.sqrt(mx * mx + my * my + mz * mz)
+    return mx * inv, my * inv, mz * inv
+
+
+# --- lobe kernels (layout: ks[C], alpha, alpha_y, masking, fresnel[1 + 2C]) -------------------
+
+@kernel
+def eval_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    if iz <= 0.0 or oz <= 0.0:
+        return
+    ax = q[nch]
+    ay = q[nch + 1]
+    hx = ix + ox
+    hy = iy + oy
+    hz = iz + oz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    hx *= inv
+    hy *= inv
+    hz *= inv
+    cos_d = ix * hx + iy * hy + iz * hz
+    li = smith_lambda(dist, ax, ay, ix, iy, iz)
+    lo = smith_lambda(dist, ax, ay, ox, oy, oz)
+    g2 = 1.0 / ((1.0 + li) * (1.0 + lo)) if q[nch + 2] == 0.0 else 1.0 / (1.0 + li + lo)
+    v = ndf(dist, ax, ay, hx, hy, hz) * g2 / (4.0 * iz * oz)  # Walter et al. 2007, eq. 20
+    for c in range(nch):
+        out[k, c] += q[c] * fresnel(q, nch + 3, nch, c, cos_d) * v
+
+
+@kernel
+def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    if iz <= 0.0 or oz <= 0.0:
+        return 0.0
+    ax = q[nch]
+    ay = q[nch + 1]
+    hx = ix + ox
+    hy = iy + oy
+    hz = iz + oz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    g1 = 1.0 / (1.0 + smith_lambda(dist, ax, ay, ix, iy, iz))
+    # D_wi(h) / (4 wo.h) with D_wi = G1 (wi.h) D / cos_i and wi.h = wo.h: Heitz 2018, eq. 17
+    return g1 * ndf(dist, ax, ay, hx * inv, hy * inv, hz * inv) / (4.0 * iz)
+
+
+@kernel
+def sample_(dist, q, nch, ix, iy, iz, u1, u2):
+    if iz <= 0.0:
+        return 0.0, 0.0, 1.0, 0.0
+    hx, hy, hz = sample_visible_normal(dist, q[nch], q[nch + 1], ix, iy, iz, u1, u2)
+    ox, oy, oz = reflect_about(ix, iy, iz, hx, hy, hz)
+    if oz <= 0.0:
+        return ox, oy, oz, 0.0
+    return ox, oy, oz, pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz)
+
+
+@kernel
+def hint_(q, nch, ix, iy, iz):
+    if iz <= 0.0:
+        return 0.0
+    s = 0.0
+    for c in range(nch):
+        s += q[c] * fresnel(q, nch + 3, nch, c, iz)
+    return s / nch
