@@ -3,11 +3,59 @@
 Kernels are cached to disk (``cache=True``) so only the first run in an environment pays for
 compilation. Fast-math flags exclude ``nnan`` and ``ninf``: kernels test for NaN and rely on
 ``inf`` (the pdf of a delta lobe), which the full fast-math set would let LLVM discard.
+
+numba keys a cached kernel on its own source file only, but our kernels inline functions from
+other modules of the package (a model's formula into the dispatcher), so an edit to one file
+could leave stale machine code behind. The cache locators below stamp every kernel of this
+package with a fingerprint of all its source files instead.
 """
 
+import hashlib
+import os
+
 import numba
+from numba.core import caching
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _package_stamp():
+    h = hashlib.sha256()
+    for root, dirs, files in os.walk(_PACKAGE):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(f for f in files if f.endswith(".py")):
+            st = os.stat(os.path.join(root, name))
+            h.update(f"{root}/{name}:{st.st_mtime_ns}:{st.st_size};".encode())
+    return h.hexdigest()
+
+
+_STAMP = _package_stamp()
+
+
+class _PackageStamp:
+    """Mixin: invalidate cached kernels of this package when any of its files changes."""
+
+    def get_source_stamp(self):
+        return _STAMP
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not os.path.abspath(py_file).startswith(_PACKAGE + os.sep):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+class _InTree(_PackageStamp, caching.InTreeCacheLocator):
+    pass
+
+
+class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
+    pass
+
+
+if _InTree not in caching.CacheImpl._locator_classes:
+    caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
 
 
 def kernel(fn):
