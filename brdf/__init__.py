@@ -7,11 +7,12 @@
 
 __version__ = "0.1.0"
 
-from . import geometry, models  # noqa: E402
+from . import geometry, models, radiometry  # noqa: E402
 from .errors import BRDFError, FormatError, InputError, ParameterError, SpecError  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "models", "geometry",
+           "radiometry",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError"]
 
 

@@ -2,7 +2,9 @@
 
 Kernels are cached to disk (``cache=True``) so only the first run in an environment pays for
 compilation. Fast-math flags exclude ``nnan`` and ``ninf``: kernels test for NaN and rely on
-``inf`` (the pdf of a delta lobe), which the full fast-math set would let LLVM discard.
+``inf`` (the pdf of a delta lobe), which the full fast-math set would let LLVM discard. Division
+follows IEEE (``error_model="numpy"``): a zero divisor gives inf or NaN, which the kernels treat
+as an invalid sample, instead of raising, and the loops stay free of checks that block SIMD.
 
 numba keys a cached kernel on its own source file only, but our kernels inline functions from
 other modules of the package (a model's formula into the dispatcher), so an edit to one file
@@ -60,9 +62,16 @@ if _InTree not in caching.CacheImpl._locator_classes:
 
 def kernel(fn):
     """Compile a scalar or serial kernel (cached, fast-math without nnan/ninf)."""
-    return numba.njit(fn, cache=True, fastmath=FASTMATH)
+    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy")
+
+
+def inline_kernel(fn):
+    """Compile a kernel that numba inlines into its callers: for the formulas on the path of
+    ``eval``, where inlining before LLVM lets the array loop vectorise across the formula (four
+    times faster on ``lambert + ggx``). Elsewhere it would only multiply compile time."""
+    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
 
 
 def parallel_kernel(fn):
     """Compile an array kernel whose ``prange`` loops run on all cores."""
-    return numba.njit(fn, cache=True, fastmath=FASTMATH, parallel=True)
+    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy", parallel=True)

@@ -77,23 +77,35 @@ class _Parser:
             self.take()
             while self.peek()[1] != ")":
                 if self.peek()[0] == "name" and self.toks[self.i + 1][1] == "=":
-                    key = self.take()[1]
+                    key = self.take()
                     self.take(value="=")
-                    kwargs[key] = self.value()
+                    kwargs[key[1]] = self.value(self.declaration(cls, key))
                 elif kwargs:
                     self.fail(self.peek(), "expected NAME=value after a named argument")
                 else:
-                    args.append(self.value())
+                    decl = cls.PARAMS[len(args)] if len(args) < len(cls.PARAMS) else None
+                    args.append(self.value(decl))
                 if self.peek()[1] != ")":
                     self.take(value=",")
             self.take(value=")")
         try:
             return cls(*args, **kwargs)
-        except SpecError as exc:
-            raise SpecError(f"spec column {tok[2] + 1}: {exc}") from None
+        except SpecError as exc:  # keep the subclass (ParameterError) for callers to catch
+            raise type(exc)(f"spec column {tok[2] + 1}: {exc}") from None
 
-    def value(self):
+    def declaration(self, cls, key):
+        try:
+            return cls.declaration(key[1])
+        except SpecError as exc:
+            raise SpecError(f"spec column {key[2] + 1}: {exc}") from None
+
+    def value(self, decl):
+        """A number, a [list], a choice name, or a nested term parsed in place (so that its
+        errors point at their own column)."""
+        from .models import Nested
         tok = self.peek()
+        if isinstance(decl, Nested) and tok[0] == "name":
+            return self.term(decl.registry)
         if tok[0] == "number":
             self.take()
             return float(tok[1])
@@ -106,20 +118,8 @@ class _Parser:
             self.take(value="]")
             return items
         if tok[0] == "name":
-            start = self.i
             self.take()
-            if self.peek()[1] != "(":
-                return tok[1]
-            depth = 0
-            while True:  # hand the nested call's text to the parameter that owns it
-                t = self.take()
-                if t[0] == "end":
-                    self.fail(t, "expected ')'")
-                depth += t[1] == "("
-                depth -= t[1] == ")"
-                if depth == 0 and t[1] == ")":
-                    break
-            return self.text[self.toks[start][2]:t[2] + 1]
+            return tok[1]
         self.fail(tok, "expected a number, a [list] or a name")
 
 

@@ -4,6 +4,7 @@
 """
 
 from . import fresnel, lambert, microfacet, mirror  # noqa: F401  (registration)
+from . import blinn_phong, phong  # noqa: F401  (registration)
 from ._registry import FRESNEL, MODELS, register
 from .base import Choice, Compiled, Component, Model, Nested, Param, Sum
 from .fresnel import Conductor, Dielectric, NoFresnel, Schlick
@@ -11,7 +12,15 @@ from .lambert import Lambert
 from .microfacet import BeckmannModel as Beckmann
 from .microfacet import GGXModel as GGX
 from .mirror import Mirror
+from .blinn_phong import BlinnPhong
+from .phong import ModifiedPhong, Phong
+from .ward import Ward
+from .ashikhmin_shirley import AshikhminShirley
+from .lafortune import Lafortune
 
 __all__ = ["MODELS", "FRESNEL", "register", "Param", "Choice", "Nested", "Component", "Model",
            "Sum", "Compiled", "Lambert", "Mirror", "GGX", "Beckmann", "NoFresnel", "Schlick",
            "Dielectric", "Conductor"]
+__all__ += ["Phong", "ModifiedPhong", "BlinnPhong"]
+__all__ += ["Ward"]
+__all__ += ["Lafortune", "AshikhminShirley"]

@@ -159,6 +159,7 @@ class Component:
             elif decl.default is not None:
                 values[decl.name] = decl.coerce(decl.default, where)
         self._values = values
+        _ = self.channels  # per-channel parameters, nested ones included, must agree
         self._check()
 
     def _check(self):
@@ -313,7 +314,8 @@ def _directions(x, name):
     arr = np.asarray(x, dtype=np.float64)
     if arr.ndim == 0 or arr.shape[-1] != 3:
         raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    # the sum is a cheap screen (NaN and inf propagate); only a non-finite sum needs the full test
+    if not np.isfinite(arr.sum()) and not np.all(np.isfinite(arr)):
         raise InputError(f"{name} holds NaN or infinite values")
     return arr
 
@@ -327,13 +329,14 @@ def _flat_pair(wi, wo):
     return wi, wo, shape
 
 
-def gauss_legendre_unit(n):
-    """Nodes ``(n*n, 2)`` and weights ``(n*n,)`` of the product Gauss-Legendre rule on [0,1]^2."""
+def _gauss_legendre_unit(n):
+    """Nodes and weights of the n-point Gauss-Legendre rule on [0, 1]."""
     x, w = np.polynomial.legendre.leggauss(n)
-    x = 0.5 * (x + 1.0)
-    w = 0.5 * w
-    u1, u2 = np.meshgrid(x, x, indexing="ij")
-    return np.stack([u1.ravel(), u2.ravel()], -1), np.outer(w, w).ravel()
+    return 0.5 * (x + 1.0), 0.5 * w
+
+
+#: Panel rules of the albedo cubature: 6-point Gauss-Legendre and the embedded 3-point estimate.
+_GAUSS_RULES = (*_gauss_legendre_unit(6), *_gauss_legendre_unit(3))
 
 
 class Model(Component):
@@ -436,28 +439,32 @@ class Model(Component):
         _kernels.sample_array(*c.args, wi, u, wo, pdf, weight)
         return wo.reshape(shape + (3,)), pdf.reshape(shape), weight.reshape(shape + (c.nch,))
 
-    def albedo(self, wi, order=128, return_error=False):
+    def albedo(self, wi, tol=1e-5, return_error=False, max_panels=1024):
         """Directional albedo a(wi) = integral of f cos(theta_o) over the hemisphere, ``(..., C)``.
 
-        Each lobe is integrated in the unit square of its own importance sampler (change of
-        variables wo = warp(u), so the integrand is f cos / pdf) by an ``order`` x ``order``
-        Gauss-Legendre product rule; a sharp lobe is then as easy as a broad one. The error
-        estimate (with ``return_error``) is the difference to the rule of half the order.
+        Each lobe is integrated over the unit square of its own importance sampler (wo = warp(u),
+        so the integrand is f cos / pdf and a sharp lobe is as easy as a broad one) by adaptive
+        cubature: square panels with a 6 x 6 Gauss-Legendre rule and an embedded 3 x 3 one, the
+        panel where they differ most split in four until the summed differences are below
+        ``tol`` (relative to max(1, albedo)) or ``max_panels`` are used. Delta lobes are exact.
+
+        Returns
+        -------
+        albedo : ndarray, shape (..., C)
+        error : ndarray, shape (..., C)
+            With ``return_error``: the summed panel error estimates, a conservative estimate of
+            the absolute error.
         """
         from . import _kernels
         wi = _directions(wi, "wi")
         shape = wi.shape[:-1]
         flat = np.ascontiguousarray(wi.reshape(-1, 3))
         c = self._compiled()
-        results = []
-        for n in ((order, order // 2) if return_error else (order,)):
-            nodes, weights = gauss_legendre_unit(n)
-            out = np.zeros((flat.shape[0], c.nch))
-            _kernels.albedo_array(*c.args, flat, nodes, weights, out)
-            results.append(out.reshape(shape + (c.nch,)))
-        if return_error:
-            return results[0], np.abs(results[0] - results[1])
-        return results[0]
+        out = np.zeros((flat.shape[0], c.nch))
+        err = np.zeros((flat.shape[0], c.nch))
+        _kernels.albedo_array(*c.args, flat, _GAUSS_RULES, float(tol), int(max_panels), out, err)
+        out = out.reshape(shape + (c.nch,))
+        return (out, err.reshape(shape + (c.nch,))) if return_error else out
 
 
 class Sum(Model):
@@ -486,7 +493,9 @@ class Sum(Model):
                                  f"({', '.join(map(str, sorted(counts)))})")
         return counts.pop() if counts else 1
 
-    energy_conserving = property(lambda self: all(l.energy_conserving for l in self._lobes))
+    # a sum of energy-conserving lobes can still reflect more than it receives (lambert(1) + ggx)
+    energy_conserving = property(lambda self: len(self._lobes) == 1
+                                 and self._lobes[0].energy_conserving)
     reciprocal = property(lambda self: all(l.reciprocal for l in self._lobes))
     delta = property(lambda self: all(l.delta for l in self._lobes))
     is_anisotropic = property(lambda self: any(l.anisotropic for l in self._lobes))

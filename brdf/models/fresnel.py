@@ -6,7 +6,7 @@ kernels a term is a block of ``1 + 2 C`` floats: a mode code, then two per-chann
 
 import math
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from ._registry import FRESNEL
 from .base import Component, Param
 
@@ -67,7 +67,15 @@ class Conductor(Fresnel):
               Param("k", 3.0, (0.0, 20.0), per_channel=True, doc="extinction coefficient"))
 
 
-@kernel
+@inline_kernel
+def schlick(f0, cos_i):
+    """Schlick 1994, "An Inexpensive BRDF Model for Physically-based Rendering", eq. 15."""
+    m = 1.0 - cos_i
+    m2 = m * m
+    return f0 + (1.0 - f0) * m2 * m2 * m
+
+
+@inline_kernel
 def dielectric_reflectance(cos_i, eta):
     """Walter et al. 2007, eq. 22 (total internal reflection gives 1)."""
     c = abs(cos_i)
@@ -80,7 +88,7 @@ def dielectric_reflectance(cos_i, eta):
     return 0.5 * a * a * (1.0 + b * b)
 
 
-@kernel
+@inline_kernel
 def conductor_reflectance(cos_i, eta, k):
     """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor)."""
     c = min(abs(cos_i), 1.0)
@@ -98,15 +106,13 @@ def conductor_reflectance(cos_i, eta, k):
     return 0.5 * (rp + rs)
 
 
-@kernel
+@inline_kernel
 def fresnel(q, off, nch, ch, cos_d):
     """Reflectance of the Fresnel block at ``q[off:]`` for channel ``ch`` at cosine ``cos_d``."""
     mode = q[off]
     a = q[off + 1 + ch]
     if mode == SCHLICK:
-        m = 1.0 - cos_d
-        m2 = m * m
-        return a + (1.0 - a) * m2 * m2 * m  # Schlick 1994, eq. 15
+        return schlick(a, cos_d)
     if mode == DIELECTRIC:
         return dielectric_reflectance(cos_d, a)
     if mode == CONDUCTOR:

@@ -2,7 +2,7 @@
 
 import math
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from ..sampling import square_to_cosine_hemisphere
 from . import _kinds
 from ._registry import register
@@ -24,11 +24,11 @@ class Lambert(Model):
                     doc="directional-hemispherical reflectance", fit_bounds=(0.0, 1.0)),)
 
 
-@kernel
+@inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    if iz > 0.0 and oz > 0.0:
-        for c in range(nch):
-            out[k, c] += q[c] * INV_PI  # f = rho / pi
+    v = INV_PI if (iz > 0.0 and oz > 0.0) else 0.0  # a select keeps the array loop vectorised
+    for c in range(nch):
+        out[k, c] += q[c] * v  # f = rho / pi
 
 
 @kernel

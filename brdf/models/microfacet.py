@@ -12,15 +12,16 @@ d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
 
 import math
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from ..sampling import reflect_about
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Choice, Model, Nested, Param
-from .fresnel import fresnel
+from .fresnel import NONE, fresnel
 
 GGX, BECKMANN = 0, 1
 SQRT_PI = math.sqrt(math.pi)
+ERF_EDGE = 1.0 - 2.0 ** -53
 
 
 class Microfacet(Model):
@@ -70,38 +71,70 @@ class BeckmannModel(Microfacet):
 
 # --- distributions ---------------------------------------------------------------------------
 
-@kernel
+@inline_kernel
 def ndf(dist, ax, ay, hx, hy, hz):
-    """Normal distribution D(h) in 1/sr, normalised so that the integral of D cos = 1."""
-    if hz <= 0.0:
-        return 0.0
+    """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
+    hh = hx * hx + hy * hy + hz * hz
     sx = hx / ax
     sy = hy / ay
     if dist == GGX:
         t = sx * sx + sy * sy + hz * hz
-        return 1.0 / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
+        return hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
     hz2 = hz * hz
-    return math.exp(-(sx * sx + sy * sy) / hz2) / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+    return math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+
+
+@inline_kernel
+def smith_lambda(dist, ax, ay, x, y, z):
+    """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
+    a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
+    if dist == GGX:
+        return 0.5 * (math.sqrt(1.0 + a2t2) - 1.0)
+    if a2t2 <= 0.0:
+        return 0.0
+    a = 1.0 / math.sqrt(a2t2)
+    return 0.5 * (math.erf(a) - 1.0) + math.exp(-a * a) / (2.0 * a * SQRT_PI)
+
+
+@inline_kernel
+def ggx_root(ax, ay, x, y, z):
+    """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z)."""
+    return math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)
 
 
 @kernel
-def smith_lambda(dist, ax, ay, x, y, z):
-    """Smith's Lambda for a direction (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
-    if z <= 0.0:
-        return math.inf
-    a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
-    if a2t2 <= 0.0:
-        return 0.0
+def g1(dist, ax, ay, x, y, z):
+    """Smith masking G1 = 1 / (1 + Lambda) of a direction with z > 0 (Heitz 2014, eq. 43)."""
     if dist == GGX:
-        return 0.5 * (math.sqrt(1.0 + a2t2) - 1.0)
-    a = 1.0 / math.sqrt(a2t2)
-    return 0.5 * (math.erf(a) - 1.0) + math.exp(-a * a) / (2.0 * a * SQRT_PI)
+        return 2.0 * z / (z + ggx_root(ax, ay, x, y, z))
+    return 1.0 / (1.0 + smith_lambda(dist, ax, ay, x, y, z))
+
+
+@inline_kernel
+def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
+    """G2 / (4 cos_i cos_o) for directions above the horizon.
+
+    For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
+    1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
+    """
+    if dist == GGX:
+        ri = ggx_root(ax, ay, ix, iy, iz)
+        ro = ggx_root(ax, ay, ox, oy, oz)
+        if separable:
+            return 1.0 / ((iz + ri) * (oz + ro))
+        return 0.5 / (ri * oz + ro * iz)
+    li = smith_lambda(dist, ax, ay, ix, iy, iz)
+    lo = smith_lambda(dist, ax, ay, ox, oy, oz)
+    g2 = 1.0 / ((1.0 + li) * (1.0 + lo)) if separable else 1.0 / (1.0 + li + lo)  # eq. 98, 99
+    return g2 / (4.0 * iz * oz)
 
 
 @kernel
 def erfinv(y):
     """Inverse error function: Giles 2010, "Approximating the erfinv function", single-precision
-    branch, refined to double precision by two Newton steps on erf(x) = y."""
+    branch, refined to double precision by two Newton steps on erf(x) = y. ``y`` is clamped
+    inside (-1, 1) so that u = 0, a legal uniform number, maps to a finite slope."""
+    y = min(max(y, -ERF_EDGE), ERF_EDGE)
     w = -math.log((1.0 - y) * (1.0 + y))
     if w < 5.0:
         w -= 2.5
@@ -206,26 +239,23 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
 
 # --- lobe kernels (layout: ks[C], alpha, alpha_y, masking, fresnel[1 + 2C]) -------------------
 
-@kernel
+@inline_kernel
 def eval_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    if iz <= 0.0 or oz <= 0.0:
-        return
     ax = q[nch]
     ay = q[nch + 1]
     hx = ix + ox
     hy = iy + oy
     hz = iz + oz
-    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
-    hx *= inv
-    hy *= inv
-    hz *= inv
-    cos_d = ix * hx + iy * hy + iz * hz
-    li = smith_lambda(dist, ax, ay, ix, iy, iz)
-    lo = smith_lambda(dist, ax, ay, ox, oy, oz)
-    g2 = 1.0 / ((1.0 + li) * (1.0 + lo)) if q[nch + 2] == 0.0 else 1.0 / (1.0 + li + lo)
-    v = ndf(dist, ax, ay, hx, hy, hz) * g2 / (4.0 * iz * oz)  # Walter et al. 2007, eq. 20
-    for c in range(nch):
-        out[k, c] += q[c] * fresnel(q, nch + 3, nch, c, cos_d) * v
+    v = ndf(dist, ax, ay, hx, hy, hz) * visibility(dist, q[nch + 2] == 0.0, ax, ay,
+                                                   ix, iy, iz, ox, oy, oz)
+    v = v if (iz > 0.0 and oz > 0.0) else 0.0  # a select, not a branch: keeps the loop vectorised
+    if q[nch + 3] == NONE:
+        for c in range(nch):
+            out[k, c] += q[c] * v  # Walter et al. 2007, eq. 20 with F = 1
+    else:
+        cos_d = (ix * hx + iy * hy + iz * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)
+        for c in range(nch):
+            out[k, c] += q[c] * fresnel(q, nch + 3, nch, c, cos_d) * v  # eq. 20
 
 
 @kernel
@@ -234,13 +264,8 @@ def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
         return 0.0
     ax = q[nch]
     ay = q[nch + 1]
-    hx = ix + ox
-    hy = iy + oy
-    hz = iz + oz
-    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
-    g1 = 1.0 / (1.0 + smith_lambda(dist, ax, ay, ix, iy, iz))
     # D_wi(h) / (4 wo.h) with D_wi = G1 (wi.h) D / cos_i and wi.h = wo.h: Heitz 2018, eq. 17
-    return g1 * ndf(dist, ax, ay, hx * inv, hy * inv, hz * inv) / (4.0 * iz)
+    return g1(dist, ax, ay, ix, iy, iz) * ndf(dist, ax, ay, ix + ox, iy + oy, iz + oz) / (4.0 * iz)
 
 
 @kernel

@@ -2,7 +2,7 @@
 
 import math
 
-from .._jit import kernel
+from .._jit import inline_kernel, kernel
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Model, Nested, Param
@@ -28,7 +28,7 @@ class Mirror(Model):
               Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_i)"))
 
 
-@kernel
+@inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
     pass  # a delta lobe has no density with respect to solid angle
 

@@ -1,0 +1,145 @@
+"""One generalised cosine lobe of Lafortune, Foo, Torrance & Greenberg 1997.
+
+f = max(0, Cx wi_x wo_x + Cy wi_y wo_y + Cz wi_z wo_z)^n  ("Non-Linear Approximation of
+Reflectance Functions", SIGGRAPH 1997, eqs. 3-4, with the matrix diagonal in the local frame).
+
+Cx = Cy = -1, Cz = 1 is a Phong lobe about the mirror direction, Cx = Cy = Cz > 0 a retro-reflective
+lobe, |Cx| = |Cy| < Cz an off-specular one. The paper fits the coefficients per colour channel;
+a fit with several lobes is a sum (``lafortune(...) + lafortune(...)``), its diffuse part a
+``lambert`` lobe. The magnitude of C carries the lobe's scale, so the family conserves energy only
+for some coefficients (the energy checks evaluate it).
+
+Sampling draws wo from a cos^m lobe about s / |s|, s = (Cx wi_x, Cy wi_y, Cz wi_z), with the
+channel means of C and the smallest channel exponent m: f = |s|^n cos^n(angle to s), so when the
+channels share an axis the weight f cos / pdf ~ cos^(n - m) stays bounded in every channel (a
+mean exponent would give the broader channels heavy tails the pdf cannot cover).
+"""
+
+import math
+
+import numpy as np
+
+from .._jit import inline_kernel, kernel
+from ..errors import ParameterError
+from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
+from . import _kinds
+from ._registry import register
+from .base import Model, Param
+
+#: Cap of the albedo hint: keeps an unnormalised lobe (|s| > 1, large n) from turning the
+#: lobe-selection weights of a sum into inf / inf.
+HINT_MAX = 1e6
+#: Largest log of the peak value max(|C|)^n that double precision holds with room to spare.
+MAX_LOG_PEAK = 690.0
+
+
+@register
+class Lafortune(Model):
+    """A generalised cosine lobe with per-channel coefficients ``cx, cy, cz`` and exponent ``n``."""
+
+    name = "lafortune"
+    aliases = ("cosine-lobe",)
+    summary = "generalised cosine lobe, f = max(0, Cx ix ox + Cy iy oy + Cz iz oz)^n"
+    citation = ("Lafortune, Foo, Torrance & Greenberg 1997, Non-Linear Approximation of "
+                "Reflectance Functions, eqs. 3-4")
+    kind = _kinds.LAFORTUNE
+    energy_conserving = False
+    # n gets a log prior: it sets the lobe width (about 1/sqrt(n)), so equal prior mass per
+    # decade treats n = 2 and n = 2000 alike; a log scale needs a positive floor, and n = 0.01
+    # (cos^0.01 is within 2% of the constant n = 0 lobe up to 80 degrees off the axis) is one.
+    PARAMS = (
+        Param("cx", -1.0, per_channel=True, fit_bounds=(-5.0, 5.0),
+              doc="coefficient of wi_x wo_x (negative for forward scattering)"),
+        Param("cy", -1.0, per_channel=True, fit_bounds=(-5.0, 5.0),
+              doc="coefficient of wi_y wo_y (differs from cx for an anisotropic lobe)"),
+        Param("cz", 1.0, per_channel=True, fit_bounds=(-5.0, 5.0),
+              doc="coefficient of wi_z wo_z"),
+        Param("n", 20.0, (0.0, 1e5), per_channel=True, prior="log", aliases=("exponent",),
+              fit_bounds=(1e-2, 1e4), doc="exponent (larger is a narrower lobe)"),
+    )
+
+    @property
+    def anisotropic(self):
+        return bool((self["cx"] != self["cy"]).any())
+
+    def _check(self):
+        # the peak value is max(|Cx|, |Cy|, |Cz|)^n (wi = wo along that axis); past double
+        # precision the lobe would evaluate to inf, which no fit or render can use
+        peak = np.max(np.broadcast_arrays(*(np.abs(self[k]) for k in ("cx", "cy", "cz"))), axis=0)
+        with np.errstate(divide="ignore"):
+            log_peak = np.asarray(self["n"]) * np.log(peak)
+        if np.any(log_peak > MAX_LOG_PEAK):
+            raise ParameterError(f"{self.name}: max(|cx|, |cy|, |cz|)^n = e^{np.max(log_peak):.0f} "
+                                 f"overflows double precision; need it below e^{MAX_LOG_PEAK:.0f}")
+
+
+# --- kernels (layout: cx[C], cy[C], cz[C], n[C]) ---------------------------------------------
+
+@kernel
+def _mean(q, start, nch):
+    s = 0.0
+    for c in range(nch):
+        s += q[start + c]
+    return s / nch
+
+
+@kernel
+def _axis(q, nch, ix, iy, iz):
+    """Sampling lobe: unit axis s / |s| of the channel-mean C (+z if s = 0), smallest exponent."""
+    sx = _mean(q, 0, nch) * ix
+    sy = _mean(q, nch, nch) * iy
+    sz = _mean(q, 2 * nch, nch) * iz
+    norm = math.sqrt(sx * sx + sy * sy + sz * sz)
+    n = q[3 * nch]
+    for c in range(1, nch):
+        n = min(n, q[3 * nch + c])
+    if norm <= 0.0:
+        return 0.0, 0.0, 1.0, n
+    return sx / norm, sy / norm, sz / norm, n
+
+
+@inline_kernel
+def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    if iz <= 0.0 or oz <= 0.0:
+        return
+    px, py, pz = ix * ox, iy * oy, iz * oz
+    for c in range(nch):
+        d = q[c] * px + q[nch + c] * py + q[2 * nch + c] * pz  # Lafortune et al. 1997, eq. 4
+        if d > 0.0:
+            out[k, c] += d ** q[3 * nch + c]
+
+
+@kernel
+def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
+    if iz <= 0.0 or oz <= 0.0:
+        return 0.0
+    ax, ay, az, n = _axis(q, nch, ix, iy, iz)
+    return cosine_power_pdf(ax * ox + ay * oy + az * oz, n)
+
+
+@kernel
+def sample_(q, nch, ix, iy, iz, u1, u2):
+    ax, ay, az, n = _axis(q, nch, ix, iy, iz)
+    lx, ly, lz = square_to_cosine_power(u1, u2, n)
+    ox, oy, oz = from_axis_frame(lx, ly, lz, ax, ay, az)
+    if iz <= 0.0 or oz <= 0.0:
+        return ox, oy, oz, 0.0
+    return ox, oy, oz, cosine_power_pdf(lz, n)
+
+
+@kernel
+def hint_(q, nch, ix, iy, iz):
+    """Channel mean of |s|^n 2 pi / (n + 2) max(0, s_z / |s|), each channel's lobe albedo if it
+    lay wholly above the horizon (the integral of cos^n about s times cos(theta_o))."""
+    if iz <= 0.0:
+        return 0.0
+    total = 0.0
+    for c in range(nch):
+        sx = q[c] * ix
+        sy = q[nch + c] * iy
+        sz = q[2 * nch + c] * iz
+        norm = math.sqrt(sx * sx + sy * sy + sz * sz)
+        if norm > 0.0 and sz > 0.0:
+            n = q[3 * nch + c]
+            total += min(norm ** n * 2.0 * math.pi / (n + 2.0) * sz / norm, HINT_MAX)
+    return total / nch

@@ -1,0 +1,340 @@
+"""Physical checks of a BRDF: non-negativity, Helmholtz reciprocity and energy conservation.
+
+:func:`check` works on anything with ``eval(wi, wo)`` returning ``(..., C)`` values in 1/sr,
+``albedo(wi, return_error=True)`` returning the directional albedo and a quadrature error
+estimate, and a ``channels`` attribute: every parametric model, sums of lobes, and measured
+tables. Each check reports its worst value, where it happens (angles in degrees and the
+channel), its tolerance and a one-line detail; the whole report prints as a table and converts
+to JSON. Results are deterministic for a given ``seed``.
+
+>>> import brdf
+>>> brdf.check("lambert(albedo=0.5) + ggx(ks=0.4, alpha=0.2)").passed
+True
+>>> report = brdf.check("phong(n=10)")  # the original Phong lobe has a 1/cos(theta_i)
+>>> report["reciprocity"].passed, report["reciprocity"].worst > 0.5
+(False, True)
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+from .geometry import spherical_to_cartesian
+
+__all__ = ["check", "CheckReport", "CheckResult", "direction_pairs", "incidence_grid",
+           "format_table", "json_ready", "RECIPROCITY_TOL", "RECIPROCITY_FLOOR", "ENERGY_TOL"]
+
+#: Largest accepted relative difference |f(wi,wo) - f(wo,wi)| / max(|f|, floor). Reciprocal
+#: formulas evaluated in a different operand order differ by a few ulps (~1e-15); 1e-6 leaves
+#: room for measured tables interpolated in float32 while any real asymmetry (the 1/cos(theta_i)
+#: of the original Phong model) shows up as an error of order one.
+RECIPROCITY_TOL = 1e-6
+#: The denominator of the relative error never drops below this fraction of the channel's
+#: largest value, so any pair with |f - g| <= RECIPROCITY_TOL * 1e-10 * peak = 1e-16 * peak
+#: passes: that is the rounding level of the peak itself. Without it, values in the far tail of
+#: a sharp lobe (exp(-tan^2/alpha^2) near underflow) would fail on relative differences that
+#: measure rounding, not symmetry; tying the floor to the peak keeps the check independent of
+#: the BRDF's scale.
+RECIPROCITY_FLOOR = 1e-10
+#: Slack on top of the quadrature error estimate when comparing albedo with 1 (rounding of the
+#: quadrature sum is ~1e-15; a measured table may carry more).
+ENERGY_TOL = 1e-6
+#: Most grazing polar angle tested, in degrees (exactly 90 puts a direction in the horizon).
+GRAZING_DEG = 89.9
+
+# Structured direction pairs, in degrees. Azimuth differences cluster around 0 (retro-reflection)
+# and 180 (the specular plane), where sharp lobes and their asymmetries live.
+GRID_THETA = (0.0, 1.0, 10.0, 30.0, 45.0, 60.0, 75.0, 85.0, 89.0, GRAZING_DEG)
+GRID_PHI_I = (0.0, 30.0, 90.0, 135.0)
+GRID_DPHI = (0.0, 0.5, 2.0, 10.0, 45.0, 90.0, 135.0, 170.0, 178.0, 179.5, 180.0, 180.5, 182.0,
+             190.0, 270.0, 359.5)
+ANGLES = ("theta_i", "phi_i", "theta_o", "phi_o")
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Outcome of one check.
+
+    Attributes
+    ----------
+    name : str
+        ``"non-negativity"``, ``"reciprocity"`` or ``"energy"``.
+    passed : bool
+        Whether the worst value is within the tolerance.
+    worst : float
+        Most negative BRDF value (1/sr), largest relative reciprocity error, or largest albedo.
+    where : dict
+        Where ``worst`` happens: ``theta_i``, ``phi_i``, ``theta_o``, ``phi_o`` in degrees (the
+        outgoing angles are ``None`` for the energy check) and ``channel``.
+    tolerance : float
+        The tolerance ``worst`` is compared with (see :func:`check`).
+    limit : str
+        The passing condition on ``worst`` as text, e.g. ``"<= 1 + 1.2e-06"``.
+    detail : str
+        One line explaining the numbers.
+    data : dict
+        Extras merged into :meth:`to_dict`: the albedo curve and the quadrature error at the
+        worst angle (energy), the floor and both values at the worst pair (reciprocity).
+    """
+
+    name: str
+    passed: bool
+    worst: float
+    where: dict
+    tolerance: float
+    limit: str
+    detail: str
+    data: dict = field(default_factory=dict)
+
+    def to_dict(self):
+        """JSON-ready dictionary (non-finite numbers become ``None``)."""
+        return json_ready({"name": self.name, "passed": self.passed, "worst": self.worst,
+                            "where": self.where, "tolerance": self.tolerance,
+                            "limit": self.limit, "detail": self.detail, **self.data})
+
+
+@dataclass(frozen=True)
+class CheckReport:
+    """The three checks of one BRDF; ``str(report)`` is a table, :meth:`to_dict` is JSON-ready."""
+
+    subject: str
+    channels: int
+    checks: tuple
+    declared: dict
+
+    @property
+    def passed(self):
+        """True when every check passed."""
+        return all(c.passed for c in self.checks)
+
+    def __getitem__(self, name):
+        for c in self.checks:
+            if c.name == name:
+                return c
+        names = ", ".join(c.name for c in self.checks)
+        raise KeyError(f"no check named {name!r}; checks: {names}")
+
+    def to_dict(self):
+        return json_ready({"subject": self.subject, "channels": self.channels,
+                           "passed": self.passed, "declared": self.declared,
+                           "checks": [c.to_dict() for c in self.checks]})
+
+    def __str__(self):
+        rows = [(c.name, "pass" if c.passed else "FAIL", f"{c.worst:.7g}", c.limit,
+                 _where_text(c.where)) for c in self.checks]
+        lines = [f"checks of {self.subject} ({self.channels} channel"
+                 f"{'' if self.channels == 1 else 's'})",
+                 format_table(("check", "result", "worst", "limit", "where"), rows, "llrll")]
+        lines += [f"  {c.name}: {c.detail}" for c in self.checks]
+        failed = [c.name for c in self.checks if not c.passed]
+        lines.append(f"result: FAIL ({', '.join(failed)})" if failed else "result: pass")
+        return "\n".join(lines)
+
+
+def format_table(header, rows, align=None):
+    """Plain-text table, columns padded to their widest cell.
+
+    Parameters
+    ----------
+    header : sequence of str
+    rows : sequence of sequences of str
+    align : str, optional
+        One letter per column, ``"l"`` or ``"r"`` (default: all left).
+    """
+    align = align or "l" * len(header)
+    cells = [list(map(str, header))] + [list(map(str, r)) for r in rows]
+    widths = [max(len(r[j]) for r in cells) for j in range(len(header))]
+    pad = [str.rjust if a == "r" else str.ljust for a in align]
+    return "\n".join("  ".join(pad[j](r[j], widths[j]) for j in range(len(r))).rstrip()
+                     for r in cells)
+
+
+def _where_text(where):
+    parts = [f"{k}={where[k]:g}" for k in ANGLES if where.get(k) is not None]
+    if where.get("channel") is not None:
+        parts.append(f"channel={where['channel']}")
+    return " ".join(parts)
+
+
+def json_ready(x):
+    """Plain JSON types from nested dicts, sequences and numpy values; non-finite numbers (NaN,
+    an unbounded parameter's inf) become ``None`` so that strict JSON parsers accept the output."""
+    if isinstance(x, dict):
+        return {k: json_ready(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [json_ready(v) for v in x]
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
+
+
+# --- where to look ---------------------------------------------------------------------------
+
+def direction_pairs(n_random=200_000, seed=0):
+    """Angles ``(n, 4)`` in degrees (theta_i, phi_i, theta_o, phi_o) of the pairs tested.
+
+    The structured grid (:data:`GRID_THETA` for both polar angles, up to 89.9 degrees, times
+    :data:`GRID_PHI_I` times the azimuth differences :data:`GRID_DPHI`) comes first, then
+    ``n_random`` pairs with both directions uniform in solid angle over the upper hemisphere.
+    """
+    ti, pi_, to, dphi = np.meshgrid(GRID_THETA, GRID_PHI_I, GRID_THETA, GRID_DPHI, indexing="ij")
+    grid = np.stack([ti, pi_, to, np.mod(pi_ + dphi, 360.0)], -1).reshape(-1, 4)
+    u = np.random.default_rng(seed).random((int(n_random), 4))
+    # cos(theta) uniform in (0, 1] is uniform in solid angle (PBR 3rd ed. 13.6.1)
+    theta = np.degrees(np.arccos(1.0 - u[:, 0::2]))
+    rand = np.stack([theta[:, 0], 360.0 * u[:, 1], theta[:, 1], 360.0 * u[:, 3]], -1)
+    return np.concatenate([grid, rand])
+
+
+def incidence_grid(theta_steps, phi_steps=1):
+    """Incidence angles in degrees for the energy check: ``(theta, phi)`` 1-D arrays.
+
+    ``theta`` runs from 0 to 89.9 degrees as 89.9 sin(pi t / 2) over evenly spaced t, so steps
+    shrink towards grazing where albedos of rough and Fresnel-free lobes change fastest;
+    ``phi`` splits the full circle into ``phi_steps`` equal parts.
+    """
+    t = np.linspace(0.0, 1.0, theta_steps)
+    return GRAZING_DEG * np.sin(0.5 * math.pi * t), np.arange(phi_steps) * (360.0 / phi_steps)
+
+
+def _directions(theta_deg, phi_deg):
+    return spherical_to_cartesian(np.radians(theta_deg), np.radians(phi_deg))
+
+
+def _values(obj, wi, wo, channels):
+    f = np.asarray(obj.eval(wi, wo), dtype=float)
+    return f.reshape(wi.shape[0], channels)
+
+
+def _pair_where(angles, k, c):
+    return {**{name: float(angles[k, j]) for j, name in enumerate(ANGLES)}, "channel": int(c)}
+
+
+# --- the three checks ------------------------------------------------------------------------
+
+def _non_negativity(f, angles, n_random, delta):
+    """Most negative value of f; a NaN or infinite value fails with its place."""
+    suffix = "; delta lobes eval to 0 and are covered by the energy check" if delta else ""
+    counts = f"{len(angles)} direction pairs ({len(angles) - n_random} grid, {n_random} random)"
+    bad = np.argwhere(~np.isfinite(f))
+    if len(bad):
+        k, c = bad[0]
+        return CheckResult("non-negativity", False, float(f[k, c]), _pair_where(angles, k, c),
+                           0.0, ">= 0", f"eval returned {f[k, c]} (not finite) among {counts}")
+    k, c = np.unravel_index(np.argmin(f), f.shape)
+    worst = float(f[k, c])
+    return CheckResult("non-negativity", worst >= 0.0, worst, _pair_where(angles, k, c), 0.0,
+                       ">= 0", f"min f = {worst:.6g} 1/sr over {counts}{suffix}")
+
+
+def _reciprocity(f, g, angles, tol):
+    """Largest relative difference between f(wi, wo) and f(wo, wi), per channel floor."""
+    finite = np.isfinite(f) & np.isfinite(g)
+    scale = np.max(np.where(finite, np.maximum(np.abs(f), np.abs(g)), 0.0), axis=0)
+    floor = np.maximum(RECIPROCITY_FLOOR * scale, np.finfo(float).tiny)
+    with np.errstate(invalid="ignore"):
+        err = np.abs(f - g) / np.maximum(np.maximum(np.abs(f), np.abs(g)), floor)
+    err = np.where(finite, err, math.inf)
+    k, c = np.unravel_index(np.argmax(err), err.shape)
+    worst = float(err[k, c])
+    detail = (f"max |f(wi,wo) - f(wo,wi)| / max(|f|, floor) = {worst:.3g} where "
+              f"f(wi,wo) = {f[k, c]:.6g} and f(wo,wi) = {g[k, c]:.6g} 1/sr; "
+              f"floor = {RECIPROCITY_FLOOR:g} x channel max")
+    return CheckResult("reciprocity", worst <= tol, worst, _pair_where(angles, k, c), tol,
+                       f"<= {tol:.3g}", detail,
+                       {"floor": floor.tolist(), "f_wi_wo": float(f[k, c]),
+                        "f_wo_wi": float(g[k, c])})
+
+
+def _energy(obj, theta, phi, tol):
+    """Largest directional albedo over the incidence grid, against 1 + tol + quadrature error."""
+    wi = _directions(theta[None, :], phi[:, None])
+    a, err = obj.albedo(wi, return_error=True)
+    a = np.asarray(a, dtype=float).reshape(len(phi), len(theta), -1)
+    err = np.asarray(err, dtype=float).reshape(a.shape)
+    key = np.where(np.isfinite(a), a, math.inf)
+    p, t, c = np.unravel_index(np.argmax(key), a.shape)
+    worst, tolerance = float(a[p, t, c]), tol + float(err[p, t, c])
+    where = {"theta_i": float(theta[t]), "phi_i": float(phi[p]), "theta_o": None,
+             "phi_o": None, "channel": int(c)}
+    detail = (f"max albedo {worst:.6f} (quadrature error estimate {err[p, t, c]:.1e}) over "
+              f"{a.shape[0] * a.shape[1]} incidence directions; largest error estimate "
+              f"{np.nanmax(err):.1e}")
+    curve = {"theta_i": theta, "phi_i": phi, "albedo": a, "error": err}
+    return CheckResult("energy", worst <= 1.0 + tolerance, worst, where, tolerance,
+                       f"<= 1 + {tolerance:.3g}", detail,
+                       {"quadrature_error": float(err[p, t, c]), "curve": curve})
+
+
+def check(obj, *, seed=0, pairs=200_000, theta_steps=90, anisotropic_steps=(24, 8),
+          reciprocity_tol=RECIPROCITY_TOL, energy_tol=ENERGY_TOL):
+    """Check non-negativity, Helmholtz reciprocity and energy conservation of a BRDF.
+
+    Parameters
+    ----------
+    obj : Model, str or measured table
+        A model, a spec string (parsed with :func:`brdf.parse`), or any object with
+        ``eval(wi, wo)``, ``albedo(wi, return_error=True)`` and ``channels``.
+    seed : int or numpy.random.Generator
+        Seed of the random direction pairs.
+    pairs : int
+        Number of random direction pairs added to the structured grid (see
+        :func:`direction_pairs`) for the non-negativity and reciprocity checks.
+    theta_steps : int
+        Incidence polar angles for the energy check of an isotropic BRDF (0 to 89.9 degrees,
+        denser near grazing; see :func:`incidence_grid`).
+    anisotropic_steps : (int, int)
+        Polar angles and azimuths of the incidence grid used instead when ``obj`` is
+        anisotropic (or does not say, having no ``is_anisotropic``): a 2-D grid costs
+        ``phi`` times more albedo integrals, so it is coarser in theta.
+    reciprocity_tol : float
+        Largest accepted relative reciprocity error (see :data:`RECIPROCITY_TOL`).
+    energy_tol : float
+        Slack added to the quadrature error estimate at the largest albedo: the energy check
+        passes when ``max albedo <= 1 + energy_tol + error estimate there``.
+
+    Returns
+    -------
+    CheckReport
+    """
+    from .spec import parse
+    if isinstance(obj, str):
+        obj = parse(obj)
+    for name in ("eval", "albedo"):
+        if not callable(getattr(obj, name, None)):
+            raise InputError(f"check: expected a model, a spec or a measured table with "
+                             f"eval() and albedo(), got {type(obj).__name__}")
+    _require_counts(pairs=(pairs, 0), theta_steps=(theta_steps, 2),
+                    anisotropic_steps=(anisotropic_steps, (2, 1)))
+    channels = int(obj.channels)
+    declared = {k: bool(getattr(obj, k)) for k in ("reciprocal", "energy_conserving", "delta",
+                                                   "is_anisotropic") if hasattr(obj, k)}
+    angles = direction_pairs(pairs, seed)
+    wi = _directions(angles[:, 0], angles[:, 1])
+    wo = _directions(angles[:, 2], angles[:, 3])
+    f = _values(obj, wi, wo, channels)
+    g = _values(obj, wo, wi, channels)
+    grid = (theta_steps, 1) if declared.get("is_anisotropic") is False else anisotropic_steps
+    theta, phi = incidence_grid(*grid)
+    checks = (_non_negativity(f, angles, pairs, declared.get("delta", False)),
+              _reciprocity(f, g, angles, reciprocity_tol),
+              _energy(obj, theta, phi, energy_tol))
+    return CheckReport(str(obj), channels, checks, declared)
+
+
+def _require_counts(**options):
+    """Raise InputError unless each option is an integer (or a tuple of integers) >= its low."""
+    for name, (value, low) in options.items():
+        values, lows = (value, low) if isinstance(low, tuple) else ((value,), (low,))
+        if not (isinstance(values, (tuple, list)) and len(values) == len(lows)
+                and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= lo
+                        for v, lo in zip(values, lows))):
+            expected = (f"{len(lows)} integers >= {lows}" if len(lows) > 1
+                        else f"an integer >= {low}")
+            raise InputError(f"check: {name} must be {expected}, got {value!r}")

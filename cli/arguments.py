@@ -1,0 +1,65 @@
+"""Argument types for angles given in degrees on the command line.
+
+Each raises :class:`argparse.ArgumentTypeError` with a message that says what was wrong and what
+was expected; argparse prefixes it with the option's name (``argument --wi: ...``).
+"""
+
+import argparse
+import math
+
+THETA_RANGE = "degrees in [0, 90]"
+PHI_RANGE = "a finite number of degrees"
+
+
+def _degrees(text, what, expected):
+    text = text.strip()
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{what} {text!r} is not a number; expected {expected}")
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"{what} {text!r} is not finite; expected {expected}")
+    return value
+
+
+def theta(text):
+    """A polar angle in degrees, 0 (the normal) to 90 (the horizon)."""
+    value = _degrees(text, "theta", THETA_RANGE)
+    if not 0.0 <= value <= 90.0:
+        raise argparse.ArgumentTypeError(f"theta {value:g} is outside [0, 90] degrees")
+    return value
+
+
+def phi(text):
+    """An azimuth in degrees (any finite value; measured from the tangent x towards y)."""
+    return _degrees(text, "phi", PHI_RANGE)
+
+
+def direction(text):
+    """``THETA,PHI`` in degrees -> ``(theta, phi)``."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected THETA,PHI in degrees (e.g. 30,0), "
+                                          f"got {text!r}")
+    return theta(parts[0]), phi(parts[1])
+
+
+def theta_list(text):
+    """Comma-separated polar angles in degrees."""
+    return [theta(part) for part in text.split(",")]
+
+
+def phi_list(text):
+    """Comma-separated azimuths in degrees."""
+    return [phi(part) for part in text.split(",")]
+
+
+def seed(text):
+    """A non-negative integer seed."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seed {text!r} is not a non-negative integer")
+    return value

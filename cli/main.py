@@ -1,0 +1,159 @@
+"""``brdf-fit``: argument parsing, dispatch and error reporting (DESIGN.md section 4).
+
+Exit status: 0 success, 1 the work ran but a check failed, 2 usage error or bad input, 3 an
+internal error (a bug). Errors are one line on stderr, ``brdf-fit: error: ...``; ``--debug``
+prints the traceback before it.
+"""
+
+import argparse
+import sys
+import textwrap
+
+from . import arguments, commands
+from .output import Output
+
+PROG = "brdf-fit"
+EXIT_USAGE, EXIT_INTERNAL = 2, 3
+# the statuses a shell reports for a process ended by SIGINT or SIGPIPE (128 + signal number)
+EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 130, 141
+
+EPILOG = """exit status: 0 success, 1 a check failed, 2 usage error or bad input, 3 internal error.
+Angles are in degrees: theta from the normal (0 to 90), phi from the tangent x towards y.
+Run 'brdf-fit SUBCOMMAND --help' for the options of a subcommand."""
+
+SPEC_HELP = ("model spec, e.g. \"lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)\" "
+             "(see 'brdf-fit models')")
+
+
+class UsageError(Exception):
+    """A command line argparse rejected; reported as one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse without the usage block on errors: the message alone, raised to :func:`main`."""
+
+    def error(self, message):
+        raise UsageError(message)
+
+
+class Version(argparse.Action):
+    """``--version``, read from the installed distribution's metadata (no library import)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest=dest, default=argparse.SUPPRESS, nargs=0,
+                         help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from importlib.metadata import version
+        print(f"{PROG} {version('brdf')}")
+        parser.exit()
+
+
+def _common(suppress):
+    """--debug and --quiet, accepted before and after the subcommand."""
+    p = argparse.ArgumentParser(add_help=False)
+    default = argparse.SUPPRESS if suppress else False
+    p.add_argument("--debug", action="store_true", default=default,
+                   help="show the traceback of errors")
+    p.add_argument("-q", "--quiet", action="store_true", default=default,
+                   help="print nothing but --json output and errors (the exit status tells)")
+    return p
+
+
+def _subcommand(sub, name, handler, help, description, json_help):
+    p = sub.add_parser(name, help=help, description=textwrap.fill(description, 79),
+                       epilog=EPILOG,
+                       parents=[_common(suppress=True)],
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--json", action="store_true", help=json_help)
+    p.set_defaults(handler=handler)
+    return p
+
+
+def build_parser():
+    parser = Parser(prog=PROG, parents=[_common(suppress=False)], epilog=EPILOG,
+                    formatter_class=argparse.RawDescriptionHelpFormatter,
+                    description="Measure, check, fit and render BRDFs.")
+    parser.add_argument("--version", action=Version, help="print the version and exit")
+    sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND", required=True)
+
+    _subcommand(sub, "models", commands.models, "list model families and their parameters",
+                "List every model family and Fresnel term: aliases, summary, citation, and "
+                "parameters with defaults, bounds, units and choices.",
+                "print the list as JSON (unbounded limits are null)")
+
+    p = _subcommand(sub, "check", commands.check,
+                    "check non-negativity, reciprocity and energy conservation",
+                    "Check a model: non-negativity and Helmholtz reciprocity over a grid plus "
+                    "random direction pairs, and energy conservation (directional albedo <= 1 "
+                    "up to the quadrature error). Exit status 1 when a check fails.",
+                    "print the report as JSON, with the albedo curve")
+    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("--seed", type=arguments.seed, default=0,
+                   help="seed of the random direction pairs (default: 0)")
+
+    p = _subcommand(sub, "eval", commands.evaluate, "evaluate f_r(wi, wo) in 1/sr",
+                    "Evaluate the BRDF (without the cosine) for one pair of directions, per "
+                    "channel, in 1/sr.", "print the values as JSON")
+    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("--wi", type=arguments.direction, required=True, metavar="THETA,PHI",
+                   help="incident direction (towards the light), degrees")
+    p.add_argument("--wo", type=arguments.direction, required=True, metavar="THETA,PHI",
+                   help="outgoing direction (towards the viewer), degrees")
+
+    p = _subcommand(sub, "albedo", commands.albedo,
+                    "directional albedo with its quadrature error",
+                    "Directional albedo a(wi) = integral of f cos(theta_o) over the hemisphere, "
+                    "for every combination of the given incidence angles, with the quadrature "
+                    "error estimate.", "print the albedos as JSON")
+    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("--theta-i", type=arguments.theta_list, default=[0.0, 30.0, 60.0, 89.0],
+                   metavar="LIST", help="incidence polar angles, degrees (default: 0,30,60,89)")
+    p.add_argument("--phi-i", type=arguments.phi_list, default=[0.0], metavar="LIST",
+                   help="incidence azimuths, degrees (default: 0)")
+    return parser
+
+
+def _error(message):
+    print(f"{PROG}: error: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def _failure(exc, debug):
+    """Exit status for an exception raised by a subcommand, after its one-line report."""
+    from brdf.errors import BRDFError
+    if debug:
+        import traceback
+        traceback.print_exception(exc)
+    if isinstance(exc, BRDFError):
+        _error(exc)
+        return EXIT_USAGE
+    if isinstance(exc, OSError):
+        _error(f"{exc.filename}: {exc.strerror}" if exc.filename else exc)
+        return EXIT_USAGE
+    hint = "" if debug else " (rerun with --debug for the traceback)"
+    _error(f"internal error: {type(exc).__name__}: {exc}{hint}")
+    return EXIT_INTERNAL
+
+
+def main(argv=None):
+    """Run ``brdf-fit`` with ``argv`` (default: the process arguments); return the exit status."""
+    try:
+        args = build_parser().parse_args(argv)
+    except UsageError as exc:
+        _error(exc)
+        return EXIT_USAGE
+    except SystemExit as exc:  # --help and --version
+        return exc.code or 0
+    try:
+        return args.handler(args, Output(sys.stdout, args.quiet))
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # the reader went away (e.g. `| head`); send the rest to /dev/null so the final flush
+        # does not raise again (Python docs, "Note on SIGPIPE")
+        import os
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+    except Exception as exc:  # noqa: BLE001  (every error becomes one line and a status)
+        return _failure(exc, args.debug)
