@@ -46,10 +46,6 @@ class AshikhminShirley(Model):
               doc="Phong exponent along the bitangent y (default: nu, isotropic)"),
     )
 
-    @property
-    def anisotropic(self):
-        return "nv" in self._values and float(self["nv"]) != float(self["nu"])
-
 
 # --- kernels (layout: rd[C], rs[C], nu, nv) --------------------------------------------------
 

@@ -354,8 +354,6 @@ class Model(Component):
     reciprocal = True
     #: True for delta lobes (eval is 0; all the energy is in ``sample``).
     delta = False
-    #: True when f depends on the azimuth of wi (anisotropic).
-    anisotropic = False
 
     # -- composition ---------------------------------------------------------------------------
     def __add__(self, other):
@@ -372,6 +370,14 @@ class Model(Component):
     def params(self):
         """Every numeric parameter under its flat ``"lobe.param"`` name."""
         return {f"{self.name}.{k}": v for k, v in self.flat().items()}
+
+    @property
+    def anisotropic(self):
+        """True when an optional parameter (``alpha_y``, ``nv``) differs from the one it falls
+        back to: the lobe then depends on the azimuth of wi."""
+        return any(isinstance(d, Param) and d.fallback and d.name in self._values
+                   and not np.array_equal(self._values[d.name], self._values[d.fallback])
+                   for d in self.PARAMS)
 
     @property
     def is_anisotropic(self):

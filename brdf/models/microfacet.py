@@ -41,10 +41,6 @@ class Microfacet(Model):
         Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_d)"),
     )
 
-    @property
-    def anisotropic(self):
-        return "alpha_y" in self._values and float(self["alpha_y"]) != float(self["alpha"])
-
 
 @register
 class GGXModel(Microfacet):

@@ -68,10 +68,6 @@ class Ward(Model):
     )
 
     @property
-    def anisotropic(self):
-        return "alpha_y" in self._values and float(self["alpha_y"]) != float(self["alpha"])
-
-    @property
     def energy_conserving(self):
         return self["variant"] == "gmd"
 
