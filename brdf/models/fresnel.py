@@ -6,7 +6,7 @@ kernels a term is a block of ``1 + 2 C`` floats: a mode code, then two per-chann
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import inline_kernel
 from ._registry import FRESNEL
 from .base import Component, Param
 

@@ -25,7 +25,8 @@ from brdf.errors import SpecError
 from brdf.models import AshikhminShirley
 from brdf.models import _kernels
 from brdf.models import ashikhmin_shirley as as_module
-from chi2 import integrate_cells
+from lobes import (assert_monte_carlo_albedo, assert_valid_share_matches_pdf,
+                   hemisphere_integral, incident)
 
 
 def unit(rng, n, upper=True):
@@ -33,11 +34,6 @@ def unit(rng, n, upper=True):
     if upper:
         v[:, 2] = np.abs(v[:, 2]) + 1e-3
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
-
-def incident(theta_deg, phi_deg=0.0):
-    t, p = math.radians(theta_deg), math.radians(phi_deg)
-    return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
 
 
 def specular(wi, wo, rs, nu, nv):
@@ -61,13 +57,6 @@ def diffuse(wi, wo, rd, rs):
     ci, co = np.atleast_2d(wi)[:, 2:], np.atleast_2d(wo)[:, 2:]
     f = 28 * rd / (23 * math.pi) * (1 - rs) * (1 - (1 - ci / 2) ** 5) * (1 - (1 - co / 2) ** 5)
     return np.where((ci > 0) & (co > 0), f, 0.0)
-
-
-def hemisphere_integral(fn):
-    """Integral over the upper hemisphere of ``fn(wo)`` by adaptive Gauss-Legendre cells."""
-    cells, converged = integrate_cells(fn, (16, 32))
-    assert converged
-    return cells.sum()
 
 
 # --- declarations and specs -------------------------------------------------------------------
@@ -227,25 +216,12 @@ def test_sample_pdf_and_eval_agree(spec):
                                          ("ashikhmin-shirley(rd=0, rs=0.9, nu=3, nv=60)", 70.0),
                                          ("ashikhmin-shirley(rd=0.3, rs=0.3, nu=1)", 85.0)])
 def test_pdf_integrates_to_the_share_of_valid_samples(spec, theta):
-    m = brdf.parse(spec)
-    wi = incident(theta, 25.0)
-    total = hemisphere_integral(lambda wo: m.pdf(wi, wo))
-    assert 0.5 < total <= 1.0 + 1e-9
-    u = np.random.default_rng(7).random((200_000, 2))
-    share = np.mean(m.sample(wi, u)[1] > 0.0)
-    sigma = math.sqrt(max(0.0, total * (1.0 - total)) / u.shape[0])
-    assert abs(share - total) < 5.0 * sigma + 1e-9
+    assert assert_valid_share_matches_pdf(brdf.parse(spec), incident(theta, 25.0), seed=7) > 0.5
 
 
 def test_monte_carlo_albedo_matches_quadrature():
-    """The mean of f cos / pdf over samples is the albedo only if ``sample`` follows ``pdf``."""
-    m = brdf.parse("ashikhmin-shirley(rd=0.6, rs=0.2, nu=20, nv=120)")
-    wi = incident(50.0, 35.0)
-    u = np.random.default_rng(8).random((400_000, 2))
-    _, _, weight = m.sample_weighted(np.broadcast_to(wi, (u.shape[0], 3)), u)
-    mean, sem = weight[:, 0].mean(), weight[:, 0].std() / math.sqrt(u.shape[0])
-    exact = hemisphere_integral(lambda wo: m.eval(wi, wo)[:, 0] * wo[:, 2])
-    assert abs(mean - exact) < 5.0 * sem
+    assert_monte_carlo_albedo(brdf.parse("ashikhmin-shirley(rd=0.6, rs=0.2, nu=20, nv=120)"),
+                              incident(50.0, 35.0), seed=8)
 
 
 # --- energy -----------------------------------------------------------------------------------

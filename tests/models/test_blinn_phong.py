@@ -16,6 +16,7 @@ import brdf
 from brdf.geometry import spherical_to_cartesian
 from brdf.models import BlinnPhong
 from brdf.models import blinn_phong as blinn_module
+from lobes import upper_directions
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -38,12 +39,6 @@ def normal_incidence_albedo(m):
 
     value, _ = integrate.quad(integrand, 0.0, math.pi / 2, epsabs=1e-13, epsrel=1e-11)
     return 2.0 * math.pi * value
-
-
-def upper_directions(rng, n):
-    v = rng.normal(size=(n, 3))
-    v[:, 2] = np.abs(v[:, 2]) + 1e-3
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 @pytest.mark.parametrize("spec", ["blinn-phong(ks=[0.1,0.2,0.3], n=12.5)",

@@ -16,7 +16,8 @@ import brdf
 from brdf.errors import SpecError
 from brdf.models import Lafortune
 from brdf.models import lafortune as lafortune_module
-from chi2 import integrate_cells
+from lobes import (assert_monte_carlo_albedo, assert_valid_share_matches_pdf,
+                   hemisphere_integral, incident)
 
 
 def unit(rng, n, upper=True):
@@ -26,11 +27,6 @@ def unit(rng, n, upper=True):
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def incident(theta_deg, phi_deg=0.0):
-    t, p = math.radians(theta_deg), math.radians(phi_deg)
-    return np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
-
-
 def definition(wi, wo, cx, cy, cz, n):
     """Lafortune et al. 1997, eq. 4 per channel (arrays ``(C,)``), 0 below the horizon: (m, C)."""
     wi, wo = np.atleast_2d(wi)[:, None, :], np.atleast_2d(wo)[:, None, :]
@@ -38,13 +34,6 @@ def definition(wi, wo, cx, cy, cz, n):
     with np.errstate(invalid="ignore"):
         f = np.where(d > 0.0, np.abs(d) ** n, 0.0)
     return np.where((wi[..., 2] > 0.0) & (wo[..., 2] > 0.0), f, 0.0)
-
-
-def hemisphere_integral(fn):
-    """Integral over the upper hemisphere of ``fn(wo)`` by adaptive Gauss-Legendre cells."""
-    cells, converged = integrate_cells(fn, (16, 32))
-    assert converged
-    return cells.sum()
 
 
 # --- declarations and specs -------------------------------------------------------------------
@@ -207,24 +196,11 @@ def test_pdf_is_a_cosine_power_about_the_lobe_axis():
 @pytest.mark.parametrize("spec, theta", [("lafortune(n=20)", 0.0), ("lafortune(n=20)", 70.0),
                                          ("lafortune(cx=-1, cy=-0.3, cz=0.5, n=4)", 50.0)])
 def test_pdf_integrates_to_the_share_of_valid_samples(spec, theta):
-    m = brdf.parse(spec)
-    wi = incident(theta, 20.0)
-    total = hemisphere_integral(lambda wo: m.pdf(wi, wo))
-    assert total <= 1.0 + 1e-9
+    total = assert_valid_share_matches_pdf(brdf.parse(spec), incident(theta, 20.0), seed=6)
     if theta == 0.0:  # the lobe about the normal lies wholly above the horizon
         assert total == pytest.approx(1.0, abs=1e-8)
-    u = np.random.default_rng(6).random((200_000, 2))
-    share = np.mean(m.sample(wi, u)[1] > 0.0)
-    sigma = math.sqrt(max(0.0, total * (1.0 - total)) / u.shape[0])
-    assert abs(share - total) < 5.0 * sigma + 1e-9
 
 
 def test_monte_carlo_albedo_matches_quadrature():
-    """The mean of f cos / pdf over samples is the albedo only if ``sample`` follows ``pdf``."""
-    m = brdf.parse("lafortune(cx=-0.9, cy=-0.6, cz=0.85, n=10)")
-    wi = incident(55.0, 40.0)
-    u = np.random.default_rng(7).random((400_000, 2))
-    _, _, weight = m.sample_weighted(np.broadcast_to(wi, (u.shape[0], 3)), u)
-    mean, sem = weight[:, 0].mean(), weight[:, 0].std() / math.sqrt(u.shape[0])
-    exact = hemisphere_integral(lambda wo: m.eval(wi, wo)[:, 0] * wo[:, 2])
-    assert abs(mean - exact) < 5.0 * sem
+    assert_monte_carlo_albedo(brdf.parse("lafortune(cx=-0.9, cy=-0.6, cz=0.85, n=10)"),
+                              incident(55.0, 40.0), seed=7)

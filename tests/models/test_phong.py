@@ -17,6 +17,7 @@ from brdf.errors import SpecError
 from brdf.geometry import spherical_to_cartesian
 from brdf.models import ModifiedPhong, Phong
 from brdf.models import phong as phong_module
+from lobes import upper_directions
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -28,13 +29,6 @@ def hemisphere_grid(order=384):
     phi, wp = math.pi * (x + 1.0), math.pi * w
     t, p = np.meshgrid(theta, phi, indexing="ij")
     return spherical_to_cartesian(t, p), np.outer(wt * np.sin(theta), wp)
-
-
-def upper_directions(rng, n):
-    """Uniformly random directions strictly above the horizon."""
-    v = rng.normal(size=(n, 3))
-    v[:, 2] = np.abs(v[:, 2]) + 1e-3
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def definition(wi, wo, ks, n, original):

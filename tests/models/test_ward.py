@@ -20,6 +20,7 @@ import brdf
 from brdf.errors import SpecError
 from brdf.models import Ward
 from brdf.models import ward as ward_module
+from lobes import upper_directions
 
 VARIANTS = ("original", "duer", "gmd")
 
@@ -84,12 +85,6 @@ def albedo_scipy(f, theta_deg, order=128):
     value, _ = integrate.quad(line, -math.pi, math.pi, points=[-0.5 * math.pi, 0.5 * math.pi],
                               limit=400, epsabs=1e-9, epsrel=1e-9)
     return value
-
-
-def random_upper(rng, n):
-    v = rng.normal(size=(n, 3))
-    v[:, 2] = np.abs(v[:, 2]) + 1e-3
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 # --- declarations and specs -------------------------------------------------------------------
@@ -221,7 +216,7 @@ def test_half_density_integrates_to_one(ax, ay):
 def test_sample_pdf_and_eval_agree(variant):
     m = brdf.parse(f"ward(rho_s=[0.9,0.5,0.2], alpha=0.1, alpha_y=0.35, variant={variant})")
     rng = np.random.default_rng(3)
-    wi = random_upper(rng, 20000)
+    wi = upper_directions(rng, 20000)
     u = rng.random((20000, 2))
     wo, pdf, weight = m.sample_weighted(wi, u)
     valid = pdf > 0.0
@@ -275,8 +270,8 @@ def test_rotation_by_90_degrees_swaps_alphas(variant):
     a = brdf.parse(f"ward(alpha=0.1, alpha_y=0.4, variant={variant})")
     b = brdf.parse(f"ward(alpha=0.4, alpha_y=0.1, variant={variant})")
     rng = np.random.default_rng(11)
-    wi = random_upper(rng, 5000)
-    wo = random_upper(rng, 5000)
+    wi = upper_directions(rng, 5000)
+    wo = upper_directions(rng, 5000)
 
     def turn(v):  # 90 degrees about z: (x, y) -> (-y, x)
         return np.stack([-v[:, 1], v[:, 0], v[:, 2]], -1)
