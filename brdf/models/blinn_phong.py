@@ -19,6 +19,7 @@ from ..sampling import cosine_power_pdf, half_unit, reflect_about, square_to_cos
 from . import _kinds
 from ._registry import register
 from .base import Choice, Model, Param
+from .packed import channel_mean
 from .phong import EXPONENT
 
 EXACT, APPROX = 0, 1  # indices of the ``normalization`` choices, as packed for the kernels
@@ -98,8 +99,5 @@ def hint_(q, nch, ix, iy, iz):
     """Mean ks times the albedo per unit ks at normal incidence (1 when exact)."""
     if iz <= 0.0:
         return 0.0
-    s = 0.0
-    for c in range(nch):
-        s += q[c]
     n = q[nch]
-    return s / nch * normalization(n, q[nch + 1]) / normalization(n, EXACT)
+    return channel_mean(q, 0, nch) * normalization(n, q[nch + 1]) / normalization(n, EXACT)

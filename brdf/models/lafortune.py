@@ -25,6 +25,7 @@ from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
 from ._registry import register
 from .base import Model, Param
+from .packed import channel_mean
 
 #: Cap of the albedo hint: keeps an unnormalised lobe (|s| > 1, large n) from turning the
 #: lobe-selection weights of a sum into inf / inf.
@@ -76,19 +77,11 @@ class Lafortune(Model):
 # --- kernels (layout: cx[C], cy[C], cz[C], n[C]) ---------------------------------------------
 
 @kernel
-def _mean(q, start, nch):
-    s = 0.0
-    for c in range(nch):
-        s += q[start + c]
-    return s / nch
-
-
-@kernel
 def _axis(q, nch, ix, iy, iz):
     """Sampling lobe: unit axis s / |s| of the channel-mean C (+z if s = 0), smallest exponent."""
-    sx = _mean(q, 0, nch) * ix
-    sy = _mean(q, nch, nch) * iy
-    sz = _mean(q, 2 * nch, nch) * iz
+    sx = channel_mean(q, 0, nch) * ix
+    sy = channel_mean(q, nch, nch) * iy
+    sz = channel_mean(q, 2 * nch, nch) * iz
     norm = math.sqrt(sx * sx + sy * sy + sz * sz)
     n = q[3 * nch]
     for c in range(1, nch):

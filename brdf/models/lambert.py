@@ -7,6 +7,7 @@ from ..sampling import square_to_cosine_hemisphere
 from . import _kinds
 from ._registry import register
 from .base import Model, Param
+from .packed import channel_mean
 
 INV_PI = 1.0 / math.pi
 
@@ -48,7 +49,4 @@ def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
 
 @kernel
 def hint_(q, nch, ix, iy, iz):
-    s = 0.0
-    for c in range(nch):
-        s += q[c]
-    return s / nch if iz > 0.0 else 0.0
+    return channel_mean(q, 0, nch) if iz > 0.0 else 0.0

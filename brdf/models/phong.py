@@ -23,6 +23,7 @@ from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
 from ._registry import register
 from .base import Model, Param
+from .packed import channel_mean
 
 ORIGINAL, MODIFIED = 0, 1
 
@@ -122,10 +123,7 @@ def hint_(form, q, nch, ix, iy, iz):
     """Mean ks times the lobe's albedo per unit ks at normal incidence."""
     if iz <= 0.0:
         return 0.0
-    s = 0.0
-    for c in range(nch):
-        s += q[c]
     # integral of cos^(n+1) over the hemisphere is 2 pi / (n + 2); the modified form divides it out
     per_ks = 2.0 * math.pi / (q[nch] + 2.0) if form == ORIGINAL else 1.0
-    return s / nch * per_ks
+    return channel_mean(q, 0, nch) * per_ks
 

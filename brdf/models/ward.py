@@ -25,6 +25,7 @@ from ..sampling import half_unit, reflect_about
 from . import _kinds
 from ._registry import register
 from .base import Choice, Model, Param
+from .packed import channel_mean
 
 ORIGINAL, DUER, GMD = 0, 1, 2
 VARIANTS = ("original", "duer", "gmd")
@@ -147,7 +148,4 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
 def hint_(q, nch, ix, iy, iz):
     if iz <= 0.0:
         return 0.0
-    s = 0.0
-    for c in range(nch):
-        s += q[c]
-    return s / nch
+    return channel_mean(q, 0, nch)
