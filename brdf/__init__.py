@@ -7,13 +7,16 @@
 
 __version__ = "0.1.0"
 
-from . import geometry, models, radiometry  # noqa: E402
-from .errors import BRDFError, FormatError, InputError, ParameterError, SpecError  # noqa: E402
+from . import geometry, io, models, radiometry  # noqa: E402
+from .errors import (BRDFError, FormatError, InputError, OutputError, ParameterError,  # noqa: E402
+                     SpecError)
+from .io import read, write  # noqa: E402
+from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
-__all__ = ["__version__", "parse", "from_dict", "from_json", "check", "models", "geometry",
-           "radiometry",
-           "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError"]
+__all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
+           "measure", "Table", "models", "geometry", "radiometry", "io",
+           "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
 def check(obj, **options):
@@ -21,3 +24,10 @@ def check(obj, **options):
     :func:`brdf.properties.check`."""
     from .properties import check as _check
     return _check(obj, **options)
+
+
+def measure(model, geometry="inplane:5", noise="none", seed=0, **options):
+    """Virtual gonioreflectometer: sample ``model`` at ``geometry`` with ``noise``; see
+    :func:`brdf.gonioreflectometer.measure`."""
+    from .gonioreflectometer import measure as _measure
+    return _measure(model, geometry, noise, seed, **options)

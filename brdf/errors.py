@@ -29,3 +29,8 @@ class FormatError(BRDFError, ValueError):
         self.path, self.where, self.expected = str(path), where, expected
         place = f"{self.path}:{where}" if where not in (None, "") else self.path
         super().__init__(f"{place}: {expected}")
+
+
+class OutputError(BRDFError, OSError):
+    """An output that cannot be written: it exists (and overwriting was not asked for) or its
+    folder is missing."""

@@ -14,6 +14,7 @@ __all__ = [
     "spherical_to_cartesian", "cartesian_to_spherical", "directions_from_degrees",
     "degrees_from_directions", "normalize", "frame_from_normal", "to_local", "to_world", "reflect",
     "half_vector", "half_diff_from_directions", "directions_from_half_diff", "rotate",
+    "direction_array", "flat_pairs",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -232,3 +233,24 @@ def directions_from_half_diff(theta_h, phi_h, theta_d, phi_d):
     h = spherical_to_cartesian(theta_h, phi_h)
     wi = rotate(rotate(d, Y_AXIS, theta_h), Z_AXIS, phi_h)
     return wi, reflect(wi, h)
+
+
+def direction_array(x, name):
+    """``x`` as a float64 array of directions ``(..., 3)``; InputError naming ``name`` if not."""
+    arr = np.asarray(x, dtype=np.float64)
+    if arr.ndim == 0 or arr.shape[-1] != 3:
+        raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
+    # the sum is a cheap screen (NaN and inf propagate); only a non-finite sum needs the full test
+    if not np.isfinite(arr.sum()) and not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} holds NaN or infinite values")
+    return arr
+
+
+def flat_pairs(wi, wo):
+    """Broadcast ``wi`` and ``wo`` together and flatten: ``(wi (n, 3), wo (n, 3), shape)``."""
+    wi = direction_array(wi, "wi")
+    wo = direction_array(wo, "wo")
+    shape = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
+    wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
+    wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))
+    return wi, wo, shape

@@ -5,13 +5,40 @@ start-up."""
 EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 
 
-def load_subject(text):
-    """What ``check``, ``eval`` and ``albedo`` work on: the model a spec describes.
-
-    Measured tables will be accepted here too, by dispatching on whether ``text`` names a file.
-    """
+def load_subject(text, sample=None):
+    """What ``check``, ``eval``, ``albedo`` and ``synth`` work on: a measured table when
+    ``text`` names a file (or has a data file's extension), otherwise the model a spec
+    describes. ``sample`` picks one material of a file that holds several (CUReT)."""
     import brdf
+    if _names_file(text):
+        return read_table(text, sample)
     return brdf.parse(text)
+
+
+def read_table(path, sample=None):
+    """``brdf.read(path)``, passing ``sample`` only when given (formats without several
+    materials do not take it)."""
+    import inspect
+    import brdf
+    from brdf.errors import InputError
+    if sample is None:
+        return brdf.read(path)
+    module = brdf.io.format_of(path)
+    if "sample" not in inspect.signature(module.read).parameters:
+        raise InputError(f"{path}: --sample is for files holding several materials; "
+                         f"format {module.FORMAT} holds one")
+    return module.read(path, sample=sample)
+
+
+def _names_file(text):
+    import os
+    from pathlib import Path
+    from brdf.io import formats
+    if os.path.exists(text):
+        return True
+    suffix = Path(text).suffix.lower()
+    return bool(suffix) and "(" not in text and any(
+        suffix in m.EXTENSIONS for m in formats().values())
 
 
 def _directions(theta_deg, phi_deg):
@@ -91,7 +118,7 @@ def models(args, out):
 def check(args, out):
     """Run the physical checks; exit 1 when any fails."""
     import brdf
-    report = brdf.check(load_subject(args.spec), seed=args.seed)
+    report = brdf.check(load_subject(args.spec, args.sample), seed=args.seed)
     if args.json:
         out.json(report.to_dict())
     else:
@@ -102,7 +129,7 @@ def check(args, out):
 def evaluate(args, out):
     """Print f_r(wi, wo) per channel in 1/sr."""
     import numpy as np
-    subject = load_subject(args.spec)
+    subject = load_subject(args.spec, args.sample)
     (ti, pi), (to, po) = args.wi, args.wo
     f = np.asarray(subject.eval(_directions(ti, pi), _directions(to, po)), float).reshape(-1)
     angles = {"theta_i": ti, "phi_i": pi, "theta_o": to, "phi_o": po}
@@ -118,7 +145,7 @@ def evaluate(args, out):
 def albedo(args, out):
     """Print the directional albedo per incidence direction with its quadrature error."""
     import numpy as np
-    subject = load_subject(args.spec)
+    subject = load_subject(args.spec, args.sample)
     phi, theta = (a.ravel() for a in np.meshgrid(args.phi_i, args.theta_i, indexing="ij"))
     a, err = subject.albedo(_directions(theta, phi), return_error=True)
     a, err = np.asarray(a, float), np.asarray(err, float)
@@ -134,4 +161,65 @@ def albedo(args, out):
             for k, (t, p) in enumerate(zip(theta, phi))]
     out.text(f"directional albedo of {subject} (error: quadrature error estimate)")
     out.table(("theta_i", "phi_i", *names), rows, "r" * (2 + len(names)))
+    return EXIT_OK
+
+
+# --- measured tables -------------------------------------------------------------------------
+
+def info(args, out):
+    """Describe a measured table: format, channels, coverage, values, provenance."""
+    summary = read_table(args.file, args.sample).summary()
+    if args.json:
+        out.json(summary)
+        return EXIT_OK
+    source = summary["source"] or {}
+    lines = [("file", source.get("path", summary["name"])),
+             ("format", summary["format"]),
+             ("size", f"{source.get('size', 0):,} bytes"),
+             ("sha256", source.get("sha256", "")),
+             ("samples", f"{summary['samples']:,}"),
+             ("channels", _channels_text(summary)),
+             ("isotropic", ("yes" if summary["isotropic"] else "no")
+              + (" (in-plane scan)" if summary["in_plane"] else "")),
+             ("sigma", "per sample" if summary["sigma"] else "none"),
+             ("missing", f"{summary['missing']:,} values"),
+             ("negative", f"{summary['negative']:,} values"),
+             ("range", "{:.6g} .. {:.6g} 1/sr".format(*summary["value_range"]))]
+    lines += [(f"{name} [deg]", f"{lo:g} .. {hi:g}")
+              for name, (lo, hi) in summary["angles_deg"].items() if lo is not None]
+    lines += [(f"meta {k}", str(v)) for k, v in summary["metadata"].items()]
+    out.table(("field", "value"), lines)
+    return EXIT_OK
+
+
+def _channels_text(summary):
+    if summary["wavelengths_nm"]:
+        w = summary["wavelengths_nm"]
+        return f"{summary['channels']} wavelengths, {w[0]:g} .. {w[-1]:g} nm"
+    return f"{summary['channels']} ({', '.join(summary['channel_names'])})"
+
+
+def convert(args, out):
+    """Read a table and write it in the format the output's extension names."""
+    import brdf
+    table = read_table(args.input, args.sample)
+    path = brdf.write(table, args.output, force=args.force)
+    if args.json:
+        out.json({"input": args.input, "output": str(path), "samples": len(table)})
+    else:
+        out.text(f"wrote {path} ({len(table):,} samples x {table.channels} channels)")
+    return EXIT_OK
+
+
+def synth(args, out):
+    """Sample a model (or resample a table) with the virtual gonioreflectometer and write it."""
+    import brdf
+    table = brdf.measure(load_subject(args.spec, args.sample), args.geometry, args.noise, args.seed)
+    path = brdf.write(table, args.output, force=args.force)
+    if args.json:
+        out.json({"output": str(path), "samples": len(table), "geometry": args.geometry,
+                  "noise": args.noise, "seed": args.seed})
+    else:
+        out.text(f"wrote {path}: {len(table):,} samples of {args.spec} at {args.geometry}, "
+                 f"noise {args.noise}, seed {args.seed}")
     return EXIT_OK

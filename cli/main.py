@@ -21,8 +21,11 @@ EPILOG = """exit status: 0 success, 1 a check failed, 2 usage error or bad input
 Angles are in degrees: theta from the normal (0 to 90), phi from the tangent x towards y.
 Run 'brdf-fit SUBCOMMAND --help' for the options of a subcommand."""
 
-SPEC_HELP = ("model spec, e.g. \"lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)\" "
-             "(see 'brdf-fit models')")
+SUBJECT_HELP = ("model spec, e.g. \"lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)\" "
+                "(see 'brdf-fit models'), or a measured table file (MERL .binary, .csv, "
+                ".npz, ...; see 'brdf-fit info')")
+GEOMETRY_HELP = ("merl (the full MERL grid), inplane:STEP, grid:DTHETA,DPHI, random:N or "
+                 "random:N:cosine, or a CSV of angles theta_i,phi_i,theta_o,phi_o (degrees)")
 
 
 class UsageError(Exception):
@@ -60,6 +63,12 @@ def _common(suppress):
     return p
 
 
+def _sample_option(p):
+    p.add_argument("--sample", type=int, default=None, metavar="N",
+                   help="for a file holding several materials (CUReT abrdf.dat: 1 to 61), "
+                        "the one to use (default: the first)")
+
+
 def _subcommand(sub, name, handler, help, description, json_help):
     p = sub.add_parser(name, help=help, description=textwrap.fill(description, 79),
                        epilog=EPILOG,
@@ -88,14 +97,16 @@ def build_parser():
                     "random direction pairs, and energy conservation (directional albedo <= 1 "
                     "up to the quadrature error). Exit status 1 when a check fails.",
                     "print the report as JSON, with the albedo curve")
-    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("spec", metavar="SPEC|FILE", help=SUBJECT_HELP)
+    _sample_option(p)
     p.add_argument("--seed", type=arguments.seed, default=0,
                    help="seed of the random direction pairs (default: 0)")
 
     p = _subcommand(sub, "eval", commands.evaluate, "evaluate f_r(wi, wo) in 1/sr",
                     "Evaluate the BRDF (without the cosine) for one pair of directions, per "
                     "channel, in 1/sr.", "print the values as JSON")
-    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("spec", metavar="SPEC|FILE", help=SUBJECT_HELP)
+    _sample_option(p)
     p.add_argument("--wi", type=arguments.direction, required=True, metavar="THETA,PHI",
                    help="incident direction (towards the light), degrees")
     p.add_argument("--wo", type=arguments.direction, required=True, metavar="THETA,PHI",
@@ -106,11 +117,45 @@ def build_parser():
                     "Directional albedo a(wi) = integral of f cos(theta_o) over the hemisphere, "
                     "for every combination of the given incidence angles, with the quadrature "
                     "error estimate.", "print the albedos as JSON")
-    p.add_argument("spec", metavar="SPEC", help=SPEC_HELP)
+    p.add_argument("spec", metavar="SPEC|FILE", help=SUBJECT_HELP)
+    _sample_option(p)
     p.add_argument("--theta-i", type=arguments.theta_list, default=[0.0, 30.0, 60.0, 89.0],
                    metavar="LIST", help="incidence polar angles, degrees (default: 0,30,60,89)")
     p.add_argument("--phi-i", type=arguments.phi_list, default=[0.0], metavar="LIST",
                    help="incidence azimuths, degrees (default: 0)")
+
+    p = _subcommand(sub, "info", commands.info, "describe a measured table",
+                    "Describe a measured table: format, channels or wavelengths, sample count, "
+                    "angle coverage, value range, missing and negative samples, SHA-256.",
+                    "print the description as JSON")
+    p.add_argument("file", metavar="FILE", help="a measured table (MERL .binary, .csv, .npz, "
+                   "RGL .bsdf, Cornell .brdf, NIST PTFE .csv, CUReT .dat)")
+    _sample_option(p)
+
+    p = _subcommand(sub, "convert", commands.convert, "convert a table to another format",
+                    "Read a measured table and write it in the format the output's extension "
+                    "names (.binary MERL, .csv gonioreflectometer CSV, .npz native). Grid "
+                    "formats are filled by interpolating the input.", "print a JSON summary")
+    p.add_argument("input", metavar="IN", help="the table to read")
+    _sample_option(p)
+    p.add_argument("output", metavar="OUT", help="the file to write")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+
+    p = _subcommand(sub, "synth", commands.synth,
+                    "measure a model with the virtual gonioreflectometer",
+                    "Sample a model (or resample a measured table) at a measurement geometry, "
+                    "add noise from a stated model and write the table (format from the "
+                    "output's extension). Same seed, same bytes.", "print a JSON summary")
+    p.add_argument("spec", metavar="SPEC|FILE", help=SUBJECT_HELP)
+    _sample_option(p)
+    p.add_argument("--geometry", default="inplane:5", metavar="GEOMETRY",
+                   help=GEOMETRY_HELP + " (default: inplane:5)")
+    p.add_argument("--noise", default="none", metavar="NOISE",
+                   help="none, relative:S (sigma = S f), additive:S (sigma = S 1/sr) or "
+                        "poisson:S (sigma = S sqrt(f)) (default: none)")
+    p.add_argument("--seed", type=arguments.seed, default=0, help="seed (default: 0)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="the file to write")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     return parser
 
 

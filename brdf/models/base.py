@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from ..errors import InputError, ParameterError, SpecError
+from ..geometry import direction_array, flat_pairs
 
 __all__ = ["Param", "Choice", "Nested", "Component", "Model", "Sum", "Compiled"]
 
@@ -310,25 +311,6 @@ class Compiled:
         return self.kinds, self.offsets, self.params, self.nch
 
 
-def _directions(x, name):
-    arr = np.asarray(x, dtype=np.float64)
-    if arr.ndim == 0 or arr.shape[-1] != 3:
-        raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
-    # the sum is a cheap screen (NaN and inf propagate); only a non-finite sum needs the full test
-    if not np.isfinite(arr.sum()) and not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} holds NaN or infinite values")
-    return arr
-
-
-def _flat_pair(wi, wo):
-    wi = _directions(wi, "wi")
-    wo = _directions(wo, "wo")
-    shape = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
-    wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
-    wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))
-    return wi, wo, shape
-
-
 def _gauss_legendre_unit(n):
     """Nodes and weights of the n-point Gauss-Legendre rule on [0, 1]."""
     x, w = np.polynomial.legendre.leggauss(n)
@@ -400,7 +382,7 @@ class Model(Component):
     def eval(self, wi, wo):
         """BRDF value f_r(wi, wo) in 1/sr without the cosine, shaped ``(..., C)``."""
         from . import _kernels
-        wi, wo, shape = _flat_pair(wi, wo)
+        wi, wo, shape = flat_pairs(wi, wo)
         c = self._compiled()
         out = np.zeros((wi.shape[0], c.nch))
         _kernels.eval_array(*c.args, wi, wo, out)
@@ -409,7 +391,7 @@ class Model(Component):
     def pdf(self, wi, wo):
         """Solid-angle density of :meth:`sample` at ``wo``, shaped ``(...)``."""
         from . import _kernels
-        wi, wo, shape = _flat_pair(wi, wo)
+        wi, wo, shape = flat_pairs(wi, wo)
         out = np.empty(wi.shape[0])
         _kernels.pdf_array(*self._compiled().args, wi, wo, out)
         return out.reshape(shape)
@@ -429,7 +411,7 @@ class Model(Component):
         For a delta lobe the weight is its reflectance divided by the probability of picking it.
         """
         from . import _kernels
-        wi = _directions(wi, "wi")
+        wi = direction_array(wi, "wi")
         u = np.asarray(u, dtype=np.float64)
         if u.shape[-1:] != (2,):
             raise InputError(f"u must be shaped (..., 2), got shape {u.shape}")
@@ -462,7 +444,7 @@ class Model(Component):
             the absolute error.
         """
         from . import _kernels
-        wi = _directions(wi, "wi")
+        wi = direction_array(wi, "wi")
         shape = wi.shape[:-1]
         flat = np.ascontiguousarray(wi.reshape(-1, 3))
         c = self._compiled()

@@ -1,0 +1,119 @@
+"""Table formats and interpolation: read/write speed against plain numpy, and the cost of the
+interpolants a measured table answers ``eval`` with.
+
+Run: ``python benchmarks/bench_io.py [--rows 100000] [--repeats 3]``
+
+- ``csv``: ``brdf.io.gonio_csv.read`` of a 100k-row RGB file with sigma columns (validation,
+  line-exact errors, the table) against a bare ``np.loadtxt`` of the same file;
+- ``npz``: write + read of a MERL-size plain table (1.458 M samples x 3) against ``np.save`` +
+  ``np.load`` of the same arrays;
+- ``real``: reading each real data set of ``../shared/measured`` (when present) with its reader,
+  against reading the same bytes (``Path.read_bytes``);
+- ``eval``: 1 M lookups in a regular grid table (multilinear), a sliced scan (8 incidence
+  angles, per-slice triangulation) and a scattered table (3-D Delaunay), each against the
+  model it was measured from (the parametric numba eval) as the yardstick.
+
+Figures are the best of ``--repeats`` runs after a warm-up.
+"""
+
+import argparse
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import brdf
+from brdf.gonioreflectometer import geometry_directions
+from brdf.io import gonio_csv, npz
+from brdf.table import Table
+
+SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.5, alpha=0.3)"
+
+
+def best(fn, repeats):
+    fn()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def show(name, ours, base, base_name):
+    print(f"{name:<28} {ours * 1e3:9.1f} ms   {base_name:<26} {base * 1e3:9.1f} ms   "
+          f"ratio {ours / base:5.2f}x")
+
+
+def bench_csv(folder, rows, repeats):
+    model = brdf.parse(SPEC)
+    t = brdf.measure(model, f"random:{rows}", "relative:0.02", seed=1)
+    path = folder / "big.csv"
+    gonio_csv.write(t, path)
+    ours = best(lambda: gonio_csv.read(path), repeats)
+    base = best(lambda: np.loadtxt(path, delimiter=",", comments="#", skiprows=8), repeats)
+    show(f"csv read {rows:,} rows", ours, base, "np.loadtxt")
+
+
+def bench_npz(folder, repeats):
+    wi, wo = geometry_directions("random:1458000", np.random.default_rng(2))
+    values = np.random.default_rng(3).random((len(wi), 3))
+    t = Table(wi, wo, values)
+    path = folder / "big.npz"
+    ours = best(lambda: (npz.write(t, path), npz.read(path)), repeats)
+
+    def plain():
+        np.save(folder / "a.npy", np.concatenate([wi, wo, values], axis=1))
+        np.load(folder / "a.npy")
+    base = best(plain, repeats)
+    show("npz write+read 1.458M", ours, base, "np.save + np.load")
+
+
+REAL = ["nist-ptfe/PTFE.data.csv", "cornell-paints/mystique.brdf", "curet/abrdf.dat",
+        "rgl/paper_white_rgb.bsdf"]
+
+
+def bench_real(repeats):
+    folder = Path(__file__).resolve().parents[2] / "shared" / "measured"
+    for relative in REAL:
+        path = folder / relative
+        if not path.is_file():
+            print(f"{relative}: not found under {folder}, skipped")
+            continue
+        ours = best(lambda: brdf.read(path), repeats)
+        base = best(lambda: path.read_bytes(), repeats)
+        show(f"read {path.name}", ours, base, "Path.read_bytes")
+
+
+def bench_eval(repeats, n=1_000_000):
+    model = brdf.parse(SPEC)
+    wi, wo = geometry_directions(f"random:{n}", np.random.default_rng(4))
+    base = best(lambda: model.eval(wi, wo), repeats)
+    theta_i = np.repeat(np.arange(0.0, 80.0, 10.0), 2000)
+    swi = brdf.geometry.directions_from_degrees(theta_i, np.zeros_like(theta_i))
+    _, swo = geometry_directions(f"random:{len(theta_i)}", np.random.default_rng(5))
+    tables = {"grid 5x5 deg (multilinear)": brdf.measure(model, "grid:5,5"),
+              "sliced 8 x 2000 (2-D Delaunay)": Table(swi, swo, model.eval(swi, swo)),
+              "scattered 20k (3-D Delaunay)": brdf.measure(model, "random:20000", seed=6)}
+    for name, table in tables.items():
+        table.eval(wi[:10], wo[:10])  # builds the interpolant
+        ours = best(lambda: table.eval(wi, wo), repeats)
+        show(f"eval 1M, {name}", ours, base, "parametric model eval")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rows", type=int, default=100_000)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        bench_csv(folder, args.rows, args.repeats)
+        bench_npz(folder, args.repeats)
+    bench_real(args.repeats)
+    bench_eval(args.repeats)
+
+
+if __name__ == "__main__":
+    main()

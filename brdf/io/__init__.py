@@ -1,0 +1,183 @@
+"""Reading and writing measured BRDF tables.
+
+:func:`read` picks the format from the file's extension, or from its content when the extension
+is unknown or shared by several formats; :func:`write` picks it from the output's extension and
+writes atomically (a temporary file in the same folder, then a rename), never replacing an
+existing file unless ``force=True``. Each format is one module of this package defining
+``FORMAT``, ``EXTENSIONS``, ``sniff(head)``, ``read(path)`` and, when it can store tables,
+``write(table, path)``.
+
+>>> import brdf
+>>> sorted(brdf.io.formats())[:3]
+['cornell', 'curet', 'gonio-csv']
+"""
+
+import hashlib
+import importlib
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import FormatError, InputError, OutputError
+
+__all__ = ["read", "write", "formats", "format_of", "Source", "source_of", "read_bytes",
+           "atomic_output"]
+
+#: Format modules, in the order content sniffing tries them.
+_MODULES = ("merl", "nist_ptfe", "cornell", "curet", "gonio_csv", "npz", "rgl_bsdf")
+
+#: Bytes of the file head passed to each format's ``sniff``.
+SNIFF_BYTES = 4096
+
+
+@dataclass(frozen=True)
+class Source:
+    """Provenance of a table read from a file."""
+
+    path: str
+    sha256: str
+    format: str
+    size: int
+
+    @property
+    def name(self):
+        """The file name without its folder."""
+        return Path(self.path).name
+
+    def to_dict(self):
+        return {"path": self.path, "sha256": self.sha256, "format": self.format,
+                "size": self.size}
+
+
+def source_of(path, data, format):
+    """:class:`Source` of ``data`` (the bytes read from ``path``) in ``format``."""
+    return Source(str(path), hashlib.sha256(data).hexdigest(), format, len(data))
+
+
+def read_bytes(path):
+    """The whole file as bytes; a missing or unreadable file is a :class:`FormatError`."""
+    try:
+        return Path(path).read_bytes()
+    except IsADirectoryError:
+        raise FormatError(path, "", "is a folder; expected a data file") from None
+    except FileNotFoundError:
+        raise FormatError(path, "", "no such file") from None
+    except OSError as e:
+        raise FormatError(path, "", f"cannot be read ({e.strerror})") from None
+
+
+def formats():
+    """``{format name: module}`` of every registered format."""
+    modules = (importlib.import_module(f"{__name__}.{m}") for m in _MODULES)
+    return {m.FORMAT: m for m in modules}
+
+
+def _named(format):
+    known = formats()
+    if format not in known:
+        raise InputError(f"unknown format {format!r}; formats: {', '.join(sorted(known))}")
+    return known[format]
+
+
+def format_of(path, head=None):
+    """The format module for ``path``: by extension, then by sniffing the first bytes.
+
+    ``head`` (the file's first bytes) is read from ``path`` when not given and needed.
+    """
+    known = formats()
+    suffix = "".join(Path(path).suffixes[-1:]).lower()
+    by_extension = [m for m in known.values() if suffix in m.EXTENSIONS]
+    if len(by_extension) == 1:
+        return by_extension[0]
+    if head is None:
+        try:
+            with open(path, "rb") as f:
+                head = f.read(SNIFF_BYTES)
+        except OSError:
+            read_bytes(path)  # raises the one-line error for a missing or unreadable file
+    for module in by_extension or known.values():
+        if module.sniff(head):
+            return module
+    extensions = sorted({e for m in known.values() for e in m.EXTENSIONS})
+    raise FormatError(path, "", f"unrecognised format (extension {suffix or 'none'!r}, content "
+                                f"matches none); known extensions: {', '.join(extensions)}")
+
+
+def read(path, format=None, **options):
+    """Read a measured BRDF table.
+
+    Parameters
+    ----------
+    path : str or path-like
+    format : str, optional
+        A name from :func:`formats`; by default chosen by extension, then content.
+    **options
+        Passed to the format's reader (e.g. ``sample=`` for CUReT).
+
+    Returns
+    -------
+    brdf.table.Table
+    """
+    module = _named(format) if format else format_of(path)
+    return module.read(path, **options)
+
+
+def write(table, path, format=None, force=False):
+    """Write ``table`` to ``path`` in the format its extension names (or ``format``).
+
+    The file appears complete or not at all; an existing file is kept unless ``force``.
+    """
+    module = _named(format) if format else format_of_output(path)
+    if not hasattr(module, "write"):
+        writable = sorted(name for name, m in formats().items() if hasattr(m, "write"))
+        raise InputError(f"format {module.FORMAT} is read-only; write one of: "
+                         f"{', '.join(writable)}")
+    with atomic_output(path, force) as tmp:
+        module.write(table, tmp)
+    return Path(path)
+
+
+def format_of_output(path):
+    """The format module an output file's extension names (writable formats first)."""
+    suffix = Path(path).suffix.lower()
+    candidates = [m for m in formats().values() if suffix in m.EXTENSIONS]
+    candidates.sort(key=lambda m: not hasattr(m, "write"))
+    if not candidates:
+        extensions = sorted({e for m in formats().values() if hasattr(m, "write")
+                             for e in m.EXTENSIONS})
+        raise InputError(f"{path}: cannot tell the format from the extension "
+                         f"{suffix or '(none)'!r}; use one of {', '.join(extensions)}")
+    return candidates[0]
+
+
+class atomic_output:
+    """Context manager yielding a temporary path next to ``path``; on success the temporary
+    file replaces ``path``, on failure it is removed. Refuses an existing ``path`` unless
+    ``force``. The temporary name keeps the extension so writers that look at it still work."""
+
+    def __init__(self, path, force=False):
+        self.path = Path(path)
+        self.force = force
+
+    def __enter__(self):
+        if self.path.exists() and not self.force:
+            raise OutputError(f"{self.path}: exists; pass --force (force=True) to replace it")
+        if not self.path.parent.is_dir():
+            raise OutputError(f"{self.path}: folder {self.path.parent} does not exist")
+        fd, name = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix,
+                                    dir=self.path.parent)
+        os.close(fd)
+        # mkstemp makes the file private (0600); give it the permissions a plain open() would
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(name, 0o666 & ~mask)
+        self.tmp = Path(name)
+        return self.tmp
+
+    def __exit__(self, kind, value, traceback):
+        if kind is None:
+            os.replace(self.tmp, self.path)
+        else:
+            self.tmp.unlink(missing_ok=True)
+        return False
