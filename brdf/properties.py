@@ -47,6 +47,11 @@ ENERGY_TOL = 1e-6
 #: per cent at best; a table that breaks reciprocity (a wrongly swapped angle convention, a
 #: missing cosine) is off by tens of per cent on most pairs.
 TABLE_RECIPROCITY_TOL = 0.1
+#: Measured tables: the denominator of the relative reciprocity error never drops below this
+#: fraction of the channel's mean value. Instruments clip or zero what is below their noise
+#: floor (Cornell's paints hold exact zeros beside 1e-5 values), so relative differences of
+#: values far below the typical one measure noise, not asymmetry.
+TABLE_RECIPROCITY_FLOOR = 0.01
 #: Two measured directions closer than this (degrees, on the sphere) count as the same.
 TABLE_PAIR_DEG = 1.0
 #: Most grazing polar angle tested, in degrees (exactly 90 puts a direction in the horizon).
@@ -399,7 +404,9 @@ def table_reciprocity(table, tol=TABLE_RECIPROCITY_TOL, pair_deg=TABLE_PAIR_DEG)
     For every sample (wi, wo) whose swap (wo, wi) lies within ``pair_deg`` degrees of a
     measured sample, the table's one-sided interpolant at (wo, wi) is compared with the
     sample; the check passes when the 95th percentile of the relative difference is within
-    ``tol`` (the worst pair is reported too: single pairs carry the measurement noise).
+    ``tol`` (the worst pair is reported too: single pairs carry the measurement noise). The
+    relative difference is taken against at least :data:`TABLE_RECIPROCITY_FLOOR` times the
+    channel's mean value.
     Layouts that store one value per reciprocal pair (MERL) pass by construction.
     """
     from scipy.spatial import cKDTree
@@ -421,10 +428,10 @@ def table_reciprocity(table, tol=TABLE_RECIPROCITY_TOL, pair_deg=TABLE_PAIR_DEG)
     swapped, inside = table.eval_one_sided(wo[paired], wi[paired])
     f = values[paired]
     ok = np.isfinite(f) & inside[:, None]
-    peak = np.nanmax(np.abs(values), axis=0)
+    floor = TABLE_RECIPROCITY_FLOOR * np.nanmean(np.abs(values), axis=0)
+    floor = np.maximum(floor, RECIPROCITY_FLOOR * np.nanmax(np.abs(values), axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        err = np.abs(f - swapped) / np.maximum(np.maximum(np.abs(f), np.abs(swapped)),
-                                               RECIPROCITY_FLOOR * peak)
+        err = np.abs(f - swapped) / np.maximum(np.maximum(np.abs(f), np.abs(swapped)), floor)
     err = np.where(ok, err, np.nan)
     if not np.isfinite(err).any():
         return CheckResult("reciprocity", None, math.nan, {}, tol, f"p95 <= {tol:g}",
@@ -441,7 +448,8 @@ def table_reciprocity(table, tol=TABLE_RECIPROCITY_TOL, pair_deg=TABLE_PAIR_DEG)
     return CheckResult("reciprocity", p95 <= tol, worst,
                        _pair_where(np.asarray(table.angles)[rows], k, c), tol,
                        f"p95 <= {tol:g}", detail,
-                       {"pairs": n_pairs, "median": median, "p95": p95})
+                       {"pairs": n_pairs, "median": median, "p95": p95,
+                        "floor": floor.tolist()})
 
 
 def _table_energy(table, angles, theta_steps, anisotropic_steps, tol):
