@@ -17,27 +17,17 @@ Ratios are printed against each baseline; the values of all three are compared t
 """
 
 import argparse
-import statistics
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 import brdf
+from timing import best_time, random_pairs
 
 ALBEDO = (0.5, 0.4, 0.3)
 KS = (0.6, 0.5, 0.4)
 ALPHA = 0.3
-
-
-def random_pairs(n, seed=0):
-    """``n`` pairs of directions uniform on the upper hemisphere."""
-    rng = np.random.default_rng(seed)
-    v = rng.normal(size=(2, n, 3))
-    v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    v[..., 2] = np.abs(v[..., 2])
-    return np.ascontiguousarray(v[0]), np.ascontiguousarray(v[1])
 
 
 def numpy_lambert_ggx(wi, wo):
@@ -53,16 +43,6 @@ def numpy_lambert_ggx(wi, wo):
 
     spec = d * g1(wi[:, 2]) * g1(wo[:, 2]) / (4.0 * wi[:, 2] * wo[:, 2])
     return np.asarray(ALBEDO) / np.pi + np.asarray(KS) * spec[:, None]
-
-
-def best_time(fn, repeats):
-    fn()  # warm-up (numba compilation, Dr.Jit kernel cache)
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times), statistics.median(times)
 
 
 def mitsuba_rows(wi, wo, repeats):

@@ -18,7 +18,6 @@ Figures are the best of ``--repeats`` runs after a warm-up.
 
 import argparse
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,18 +26,9 @@ import brdf
 from brdf.gonioreflectometer import geometry_directions
 from brdf.io import gonio_csv, npz
 from brdf.table import Table
+from timing import best_time
 
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.5, alpha=0.3)"
-
-
-def best(fn, repeats):
-    fn()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def show(name, ours, base, base_name):
@@ -51,8 +41,9 @@ def bench_csv(folder, rows, repeats):
     t = brdf.measure(model, f"random:{rows}", "relative:0.02", seed=1)
     path = folder / "big.csv"
     gonio_csv.write(t, path)
-    ours = best(lambda: gonio_csv.read(path), repeats)
-    base = best(lambda: np.loadtxt(path, delimiter=",", comments="#", skiprows=8), repeats)
+    ours = best_time(lambda: gonio_csv.read(path), repeats)[0]
+    base = best_time(lambda: np.loadtxt(path, delimiter=",", comments="#", skiprows=8),
+                     repeats)[0]
     show(f"csv read {rows:,} rows", ours, base, "np.loadtxt")
 
 
@@ -61,12 +52,12 @@ def bench_npz(folder, repeats):
     values = np.random.default_rng(3).random((len(wi), 3))
     t = Table(wi, wo, values)
     path = folder / "big.npz"
-    ours = best(lambda: (npz.write(t, path), npz.read(path)), repeats)
+    ours = best_time(lambda: (npz.write(t, path), npz.read(path)), repeats)[0]
 
     def plain():
         np.save(folder / "a.npy", np.concatenate([wi, wo, values], axis=1))
         np.load(folder / "a.npy")
-    base = best(plain, repeats)
+    base = best_time(plain, repeats)[0]
     show("npz write+read 1.458M", ours, base, "np.save + np.load")
 
 
@@ -81,15 +72,15 @@ def bench_real(repeats):
         if not path.is_file():
             print(f"{relative}: not found under {folder}, skipped")
             continue
-        ours = best(lambda: brdf.read(path), repeats)
-        base = best(lambda: path.read_bytes(), repeats)
+        ours = best_time(lambda: brdf.read(path), repeats)[0]
+        base = best_time(lambda: path.read_bytes(), repeats)[0]
         show(f"read {path.name}", ours, base, "Path.read_bytes")
 
 
 def bench_eval(repeats, n=1_000_000):
     model = brdf.parse(SPEC)
     wi, wo = geometry_directions(f"random:{n}", np.random.default_rng(4))
-    base = best(lambda: model.eval(wi, wo), repeats)
+    base = best_time(lambda: model.eval(wi, wo), repeats)[0]
     theta_i = np.repeat(np.arange(0.0, 80.0, 10.0), 2000)
     swi = brdf.geometry.directions_from_degrees(theta_i, np.zeros_like(theta_i))
     _, swo = geometry_directions(f"random:{len(theta_i)}", np.random.default_rng(5))
@@ -98,7 +89,7 @@ def bench_eval(repeats, n=1_000_000):
               "scattered 20k (3-D Delaunay)": brdf.measure(model, "random:20000", seed=6)}
     for name, table in tables.items():
         table.eval(wi[:10], wo[:10])  # builds the interpolant
-        ours = best(lambda: table.eval(wi, wo), repeats)
+        ours = best_time(lambda: table.eval(wi, wo), repeats)[0]
         show(f"eval 1M, {name}", ours, base, "parametric model eval")
 
 

@@ -18,9 +18,7 @@ Both are the best of ``--repeats`` runs after a warm-up (numba compilation, page
 
 import argparse
 import math
-import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +26,7 @@ import numpy as np
 import brdf
 from brdf.geometry import half_diff_from_directions
 from brdf.io import merl
+from timing import best_time, random_pairs
 
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)"
 READ_TARGET_S = 0.3
@@ -73,25 +72,6 @@ def numpy_trilinear(grid, filled, wi, wo):
         out = np.where(weight > 0.0, total / weight, nearest)
     above = (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
     return np.where(above[:, None], out, 0.0)
-
-
-def random_pairs(n, seed=0):
-    """``n`` pairs of directions uniform on the upper hemisphere."""
-    rng = np.random.default_rng(seed)
-    v = rng.normal(size=(2, n, 3))
-    v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    v[..., 2] = np.abs(v[..., 2])
-    return np.ascontiguousarray(v[0]), np.ascontiguousarray(v[1])
-
-
-def best_time(fn, repeats):
-    fn()  # warm-up: numba compilation, page cache, lazy grids
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times), statistics.median(times)
 
 
 def row(name, best, median, per=None):
