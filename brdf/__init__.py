@@ -15,7 +15,7 @@ from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "Table", "models", "geometry", "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
@@ -31,3 +31,9 @@ def measure(model, geometry="inplane:5", noise="none", seed=0, **options):
     :func:`brdf.gonioreflectometer.measure`."""
     from .gonioreflectometer import measure as _measure
     return _measure(model, geometry, noise, seed, **options)
+
+
+def fit(data, spec, **options):
+    """Fit a model spec to measured data with nlopt; see :func:`brdf.fitting.fit`."""
+    from .fitting import fit as _fit
+    return _fit(data, spec, **options)

@@ -223,3 +223,47 @@ def synth(args, out):
         out.text(f"wrote {path}: {len(table):,} samples of {args.spec} at {args.geometry}, "
                  f"noise {args.noise}, seed {args.seed}")
     return EXIT_OK
+
+
+# --- fitting -----------------------------------------------------------------------------------
+
+def _assignments(items):
+    """``{name: value}`` from ``NAME=VALUE`` strings (``--fix``)."""
+    from brdf.errors import InputError
+    out = {}
+    for item in items:
+        name, _, value = (part.strip() for part in item.partition("="))
+        try:
+            number = float(value)
+        except ValueError:
+            number = None
+        if not name or number is None:
+            raise InputError(f"--fix expects NAME=VALUE with a number, got {item!r}")
+        out[name] = number
+    return out
+
+
+def fit(args, out):
+    """Fit a spec to a table; write the JSON report atomically; exit 1 unless converged."""
+    import json
+    from pathlib import Path
+    import brdf
+    from brdf.errors import OutputError
+    from brdf.io import atomic_output
+    if args.output and Path(args.output).exists() and not args.force:
+        raise OutputError(f"{args.output}: exists; pass --force to replace it")
+    result = brdf.fit(read_table(args.data), args.spec, loss=args.loss, optimizer=args.optimizer,
+                      starts=args.starts, energy_constraint=args.energy_constraint,
+                      cutoff=args.cutoff, shared=args.shared, fix=_assignments(args.fix),
+                      seed=args.seed, max_evals=args.max_evals)
+    report = result.to_dict()
+    if args.output:
+        with atomic_output(args.output, args.force) as tmp:
+            tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n",
+                           encoding="utf-8")
+    if args.json:
+        out.json(report)
+    else:
+        out.text(str(result))
+    failed = not result.converged or (args.energy_constraint and not result.energy["holds"])
+    return EXIT_CHECK_FAILED if failed else EXIT_OK

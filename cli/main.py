@@ -156,7 +156,49 @@ def build_parser():
     p.add_argument("--seed", type=arguments.seed, default=0, help="seed (default: 0)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    _fit_parser(sub)
     return parser
+
+
+def _fit_parser(sub):
+    # names and defaults as in brdf.fitting (not imported here: --help stays fast)
+    p = _subcommand(sub, "fit", commands.fit, "fit a model to a measured table (nlopt)",
+                    "Fit a model spec to a measured table: minimise a loss over the samples "
+                    "within the grazing cutoff, starting from the spec's parameter values. "
+                    "Prints the fitted parameters, every metric, the optimizer's status and the "
+                    "physical checks of the result. Exit status 1 when the fit did not "
+                    "converge (or, with --energy-constraint, the energy check still fails).",
+                    "print the fit report as JSON")
+    p.add_argument("data", metavar="DATA", help="a measured table (MERL .binary, .csv, .npz, "
+                   "RGL .bsdf, ...; see 'brdf-fit info')")
+    p.add_argument("spec", metavar="SPEC", help="the model to fit, e.g. \"lambert + "
+                   "ggx(alpha=0.3)\"; its values are the starting point")
+    p.add_argument("--loss", default="cosine-l2", metavar="LOSS",
+                   help="cosine-l2 (Ngan et al. 2005), l2, relative-l2, log (Loew et al. 2012 "
+                        "E2) or chi-square (tables with sigma) (default: cosine-l2)")
+    p.add_argument("--optimizer", default="LD_LBFGS", metavar="NAME",
+                   help="local: LD_LBFGS, LD_SLSQP, LN_BOBYQA, LN_NELDERMEAD, LN_COBYLA; "
+                        "global (then polished): GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL "
+                        "(default: LD_LBFGS)")
+    p.add_argument("--starts", type=int, default=1, metavar="N",
+                   help="local optimizers: N runs, from the spec and N-1 seeded random points "
+                        "(default: 1)")
+    p.add_argument("--energy-constraint", action="store_true",
+                   help="constrain the directional albedo to at most 1 (cheapest with "
+                        "--optimizer LD_SLSQP)")
+    p.add_argument("--cutoff", type=float, default=80.0, metavar="DEG",
+                   help="leave out samples with theta_i or theta_o above DEG degrees "
+                        "(default: 80)")
+    p.add_argument("--shared", nargs="+", action="extend", default=[], metavar="NAME",
+                   help="per-channel parameters fitted as one value, e.g. ggx.ks")
+    p.add_argument("--fix", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
+                   help="parameters held fixed, e.g. ggx.alpha=0.2 or lambert.albedo[1]=0.4")
+    p.add_argument("--max-evals", type=int, default=2000, metavar="N",
+                   help="objective evaluations per run (default: 2000)")
+    p.add_argument("--seed", type=arguments.seed, default=0,
+                   help="seed of random starts and global optimizers (default: 0)")
+    p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
+    p.add_argument("--force", action="store_true", help="replace REPORT if it exists")
 
 
 def _error(message):

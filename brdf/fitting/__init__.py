@@ -1,0 +1,12 @@
+"""Fitting BRDF models to measured tables.
+
+:func:`fit` (exported as ``brdf.fit``) finds point estimates with nlopt; :mod:`.losses` holds
+the error metrics, weights and cutoff; :mod:`.problem` maps parameter vectors to models and
+losses.
+"""
+
+from .losses import LOSSES
+from .nlopt_fit import OPTIMIZERS, FitResult, fit
+from .problem import Problem
+
+__all__ = ["fit", "FitResult", "Problem", "LOSSES", "OPTIMIZERS"]

@@ -1,0 +1,456 @@
+"""The fitting problem: a vector x of free parameters -> a model -> the loss on a table.
+
+:class:`Problem` takes a spec and a table and decides what is free: every numeric parameter the
+spec's model holds (given or defaulted; optional ones left unset stay tied to the parameter
+they fall back to), minus the fixed ones. A per-channel parameter (an albedo) gets one free
+value per channel of the table, or one for all channels when listed in ``shared``. Bounds come
+from the declarations (``fit_bounds``, a finite box inside ``bounds``), optionally narrowed; a
+parameter declared with a log prior (roughness, exponents) is optimised as its logarithm, so
+that a step means the same relative change at 0.01 as at 1.
+
+The loss runs in one compiled pass over the samples for several parameter vectors at once
+(:meth:`Problem.channel_losses`): the samples are read once per block while every model
+variant is evaluated and scored, and per-block partial sums are added in a fixed order, so the
+value does not depend on the number of threads.
+"""
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+from numba import prange
+
+from .._jit import parallel_kernel
+from ..errors import InputError, ParameterError
+from ..models._kernels import lobe_eval
+from ..models.base import Component, Param, Sum
+from . import losses
+
+__all__ = ["Problem", "FreeParameter", "STEP", "resolve_name"]
+
+#: Relative step of the central differences: it balances the truncation error (~h^2) against
+#: rounding (~eps / h), h = eps^(1/3) (Nocedal & Wright 2006, Numerical Optimization, 8.1).
+STEP = np.finfo(float).eps ** (1.0 / 3.0)
+#: Samples per block of the compiled loss: the block's directions and terms stay in cache while
+#: every parameter vector of a batch is evaluated on it.
+BLOCK = 2048
+_INDEXED = re.compile(r"^(?P<base>.+)\[(?P<index>\d+)\]$")
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """One coordinate of x.
+
+    Attributes
+    ----------
+    name : str
+        Flat name (``"ggx.alpha"``, ``"lambert.albedo[1]"``; no index when shared).
+    declared : str
+        Flat name of the declaration (``"lambert.albedo"``).
+    channel : int or None
+        The one channel this coordinate affects, or None for all of them.
+    log : bool
+        Whether x holds the logarithm of the value (declared prior ``log``).
+    lower, upper : float
+        Bounds of the value (not of its logarithm).
+    slots : ndarray of int
+        Positions in the packed parameter array the kernels read (a parameter another one
+        falls back to fills both).
+    """
+
+    name: str
+    declared: str
+    channel: object
+    log: bool
+    lower: float
+    upper: float
+    slots: np.ndarray
+
+    def to_x(self, value):
+        return math.log(value) if self.log else float(value)
+
+    def from_x(self, x):
+        return np.exp(x) if self.log else x
+
+
+@dataclass
+class _Declared:
+    """A numeric parameter of the spec's model: its place, declaration and working value."""
+
+    name: str
+    lobe: int
+    path: tuple
+    decl: Param
+    value: np.ndarray
+    fixed: np.ndarray
+    box: tuple = None
+
+
+def _numeric(component, path=()):
+    """``(path, declaration, value)`` of each numeric parameter a component holds, nested
+    components (Fresnel terms) included."""
+    values = component.values
+    for decl in component.PARAMS:
+        value = values.get(decl.name)
+        if isinstance(value, Component):
+            yield from _numeric(value, path + (decl.name,))
+        elif isinstance(decl, Param) and value is not None:
+            yield path + (decl.name,), decl, value
+
+
+def _replace_path(component, path, value):
+    """A copy of ``component`` with the parameter at ``path`` (nested names) set to ``value``."""
+    if len(path) == 1:
+        return component.replace(**{path[0]: value})
+    return component.replace(**{path[0]: _replace_path(component[path[0]], path[1:], value)})
+
+
+def resolve_name(name, names, what):
+    """The declared name ``name`` refers to: itself, or the unique declared name ending in
+    ``.name`` (``alpha`` for ``ggx.alpha``). Raises InputError listing ``names`` otherwise."""
+    if name in names:
+        return name
+    matches = [n for n in names if n.endswith("." + name)]
+    if len(matches) == 1:
+        return matches[0]
+    why = f"ambiguous ({', '.join(matches)})" if matches else "unknown parameter"
+    raise InputError(f"{what}: {why} {name!r}; parameters: {', '.join(names)} (per-channel "
+                     f"ones also as NAME[i])")
+
+
+class Problem:
+    """Fitting ``spec`` to ``data``: parameter vectors to models, losses and gradients.
+
+    Parameters
+    ----------
+    data : Table, losses.Samples or object with ``wi``, ``wo``, ``values``
+    spec : str or Model
+        The model; its parameter values are the starting point.
+    loss : str
+        A metric of :data:`brdf.fitting.losses.LOSSES`.
+    cutoff : float
+        Grazing cutoff in degrees (see :func:`brdf.fitting.losses.prepare`).
+    shared : sequence of str
+        Per-channel parameters fitted as one value for all channels (``"ggx.ks"``, or
+        ``"ks"`` when unique). Naming a scalar parameter is allowed and changes nothing.
+    fix : dict, optional
+        ``{name: value}`` held fixed: a declared name fixes every channel, ``NAME[i]`` one.
+    bounds : dict, optional
+        ``{name: (lower, upper)}`` narrowing the declared box (within the declared bounds).
+
+    Notes
+    -----
+    :meth:`gradient` is computed by central differences in x, not analytically: for each
+    group of coordinates, x is moved up and down by h = :data:`STEP` max(1, |x|) (kept inside
+    the bounds, the step then shrinks on that side), and the difference of the losses is
+    divided by the distance. All those vectors go through one compiled pass
+    (:meth:`channel_losses`). The model's channels are independent (a channel's value depends on
+    that channel's entry of a per-channel parameter and on the scalar ones), so the channel
+    entries of one per-channel parameter are moved together and told apart by the per-channel
+    losses: a gradient costs 2 G + 1 evaluations for G groups (lambert + ggx with RGB albedo and
+    ks and one alpha: 7), not 2 n + 1 (15).
+    """
+
+    def __init__(self, data, spec, *, loss="cosine-l2", cutoff=losses.DEFAULT_CUTOFF, shared=(),
+                 fix=None, bounds=None):
+        from ..spec import parse
+        losses.check_loss(loss)
+        self.samples = data if isinstance(data, losses.Samples) else losses.prepare(data, cutoff)
+        self.loss_name = loss
+        self.channels = nch = self.samples.channels
+        model = parse(spec)
+        if model.channels not in (1, nch):
+            raise InputError(f"the model has {model.channels} channels and the data {nch}")
+        self._is_sum = isinstance(model, Sum)
+        self._lobes = tuple(model.lobes)
+        self._declared = self._declare(model, shared)
+        self._apply_fix(fix or {})
+        self._apply_bounds(bounds or {})
+        self.base = self._build({})
+        compiled = self.base.compile(nch)
+        self._kinds, self._offsets, self._packed = compiled.kinds, compiled.offsets, compiled.params
+        self.free = tuple(self._free_parameters())
+        self.names = tuple(p.name for p in self.free)
+        self.lower = np.array([p.to_x(p.lower) for p in self.free])
+        self.upper = np.array([p.to_x(p.upper) for p in self.free])
+        self.x0 = np.array([p.to_x(np.clip(self._value_of(p), p.lower, p.upper))
+                            for p in self.free])
+        self._groups = self._difference_groups()
+        self.terms = losses.terms(loss, self.samples, len(self.free))
+
+    # -- what is free --------------------------------------------------------------------------
+    def _declare(self, model, shared):
+        prefixes = model.lobe_names() if self._is_sum else [model.name]
+        declared = []
+        for l, (prefix, lobe) in enumerate(zip(prefixes, self._lobes)):
+            for path, decl, value in _numeric(lobe):
+                declared.append(_Declared(f"{prefix}.{'.'.join(path)}", l, path, decl,
+                                          np.asarray(value, dtype=float), None))
+        names = [d.name for d in declared]
+        shared_names = {resolve_name(s, names, "shared") for s in shared}
+        self.shared = tuple(n for n in names if n in shared_names)
+        for d in declared:
+            if d.decl.per_channel and d.name not in shared_names and self.channels > 1:
+                d.value = np.broadcast_to(d.value, (self.channels,)).copy()
+            else:
+                d.value = np.asarray(d.value.mean())
+            d.fixed = np.zeros(d.value.shape, dtype=bool)
+        return declared
+
+    def _lookup(self, name, what):
+        """``(declared, channel or None)`` for a flat name, indexed or not."""
+        names = [d.name for d in self._declared]
+        m = _INDEXED.match(name)
+        base, index = (m["base"], int(m["index"])) if m else (name, None)
+        d = self._declared[names.index(resolve_name(base, names, what))]
+        if index is not None and (d.value.ndim == 0 or index >= d.value.size):
+            detail = ("is shared or scalar: name it without an index" if d.value.ndim == 0
+                      else f"has channels 0 to {d.value.size - 1}")
+            raise InputError(f"{what}: {name!r}: {d.name} {detail}")
+        return d, index
+
+    def _apply_fix(self, fix):
+        for name, value in fix.items():
+            d, index = self._lookup(name, "fix")
+            v = np.asarray(value, dtype=float)
+            target = d.value if index is None else d.value[index:index + 1]
+            if v.size not in (1, target.size) or not np.all(np.isfinite(v)):
+                raise InputError(f"fix {name}: expected a finite number or {target.size} "
+                                 f"numbers, got {value!r}")
+            lo, hi = d.decl.bounds
+            if np.any(v < lo) or np.any(v > hi):
+                raise ParameterError(f"fix {name}={value}: outside the bounds [{lo:g}, {hi:g}] "
+                                     f"of {d.name}")
+            target[...] = v.reshape(target.shape) if v.size == target.size else v.reshape(())
+            (d.fixed if index is None else d.fixed[index:index + 1])[...] = True
+
+    def _apply_bounds(self, bounds):
+        for d in self._declared:
+            lo, hi = d.decl.bounds
+            flo, fhi = d.decl.fit_bounds
+            d.box = (max(lo, flo), min(hi, fhi))
+        for name, box in bounds.items():
+            d, index = self._lookup(name, "bounds")
+            if index is not None:
+                raise InputError(f"bounds {name}: give bounds for {d.name} as a whole")
+            try:
+                lo, hi = (float(b) for b in box)
+            except (TypeError, ValueError):
+                raise InputError(f"bounds {name}: expected (lower, upper), got {box!r}") from None
+            dlo, dhi = d.decl.bounds
+            if not (math.isfinite(lo) and math.isfinite(hi) and dlo <= lo < hi <= dhi):
+                raise InputError(f"bounds {name}: [{lo:g}, {hi:g}] must be finite with lower < "
+                                 f"upper, inside the declared [{dlo:g}, {dhi:g}] (fix equal "
+                                 "values with fix=)")
+            d.box = (lo, hi)
+        for d in self._declared:
+            if not all(math.isfinite(b) for b in d.box) or (d.decl.prior == "log"
+                                                              and d.box[0] <= 0.0):
+                raise InputError(f"{d.name}: no finite fitting box (declared {d.box}); pass "
+                                 f"bounds={{'{d.name}': (lower, upper)}}")
+
+    def _free_parameters(self):
+        for d in self._declared:
+            if d.fixed.all():
+                continue
+            slots = self._locate(d)
+            log = d.decl.prior == "log"
+            if d.value.ndim == 0:
+                yield FreeParameter(d.name, d.name, None, log, *d.box, slots[0])
+            else:
+                for c in np.flatnonzero(~d.fixed):
+                    yield FreeParameter(f"{d.name}[{c}]", d.name, int(c), log, *d.box, slots[c])
+
+    def _locate(self, d):
+        """Positions in the packed array of each entry of ``d`` (one per channel, or one for a
+        scalar), found by packing the model with probe values: the fitter then follows each
+        family's own layout (Fresnel terms pack a mode code first; an unset ``alpha_y`` mirrors
+        ``alpha``) without a second copy of it."""
+        lo, hi = d.box
+        n = d.value.size
+        probes = lo + (hi - lo) * (0.1234567 + 0.7 * np.arange(n) / max(n, 1))
+        probe_model = self._build({d.name: probes.reshape(d.value.shape)})
+        packed = probe_model.compile(self.channels).params
+        changed = packed != self._packed
+        slots = [np.flatnonzero(changed & (packed == p)) for p in probes]
+        if any(len(s) == 0 for s in slots) or sum(len(s) for s in slots) != changed.sum():
+            raise RuntimeError(f"cannot locate {d.name} in the packed parameters of "
+                               f"{self.base}")
+        return slots
+
+    def _difference_groups(self):
+        """Coordinates moved together by the central differences: the channel entries of one
+        per-channel parameter (each affects only its channel), every other coordinate alone."""
+        groups = {}
+        for i, p in enumerate(self.free):
+            key = p.declared if p.channel is not None else p.name
+            groups.setdefault(key, []).append(i)
+        return [np.array(g) for g in groups.values()]
+
+    def _value_of(self, p):
+        d = next(d for d in self._declared if d.name == p.declared)
+        return float(d.value if p.channel is None else d.value[p.channel])
+
+    # -- x -> model ----------------------------------------------------------------------------
+    def _build(self, values):
+        """The model with each declared parameter at its value in ``values``, or else at its
+        working value (starting, expanded or fixed), clipped into its declared bounds (which
+        exp(log(upper)) may exceed by an ulp)."""
+        lobes = list(self._lobes)
+        for d in self._declared:
+            v = np.clip(np.asarray(values.get(d.name, d.value), dtype=float), *d.decl.bounds)
+            lobes[d.lobe] = _replace_path(lobes[d.lobe], d.path, v)
+        return Sum(lobes) if self._is_sum else lobes[0]
+
+    def values(self, x):
+        """``{flat declared name: value}`` (scalar or per-channel array) at ``x``."""
+        x = np.asarray(x, dtype=float)
+        out = {d.name: d.value.copy() for d in self._declared}
+        for xi, p in zip(x, self.free):
+            v = float(p.from_x(xi))
+            if p.channel is None:
+                out[p.declared] = np.asarray(v)
+            else:
+                out[p.declared][p.channel] = v
+        return out
+
+    def model(self, x):
+        """The model at parameter vector ``x``."""
+        return self._build(self.values(x))
+
+    def natural(self, x):
+        """``{free name: value}`` at ``x`` (values, not their logarithms)."""
+        return {p.name: float(p.from_x(xi)) for p, xi in zip(self.free, np.asarray(x, float))}
+
+    def to_x(self, values):
+        """The vector x of ``{free name: value}`` (names missing keep the starting value)."""
+        return np.array([p.to_x(values[p.name]) if p.name in values else x0
+                         for p, x0 in zip(self.free, self.x0)])
+
+    def packed(self, X):
+        """Packed parameter arrays ``(K, P)`` the kernels read, one row per row of ``X``."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.repeat(self._packed[None, :], len(X), axis=0)
+        for i, p in enumerate(self.free):
+            out[:, p.slots] = p.from_x(X[:, i])[:, None]
+        return out
+
+    def random_x(self, rng, n):
+        """``n`` vectors drawn uniformly in the box of x (log-uniform for log parameters)."""
+        return self.lower + (self.upper - self.lower) * rng.random((n, len(self.free)))
+
+    # -- losses ----------------------------------------------------------------------------------
+    def channel_losses(self, X, terms=None):
+        """Per-channel contributions ``(K, C)`` to the loss of each row of ``X`` (they sum to
+        the loss), from one compiled pass over the samples; the lobes whose parameters are those
+        of the first row are evaluated once. ``terms`` scores another metric than the loss."""
+        P = self.packed(X)
+        s, t = self.samples, terms or self.terms
+        blocks = -(-len(s.wi) // BLOCK)
+        lobes = np.array([np.any(P[:, a:b] != P[0, a:b], axis=1)
+                          for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
+        out = np.zeros((blocks, len(P), self.channels))
+        _loss_sums(self._kinds, self._offsets, P, lobes, self.channels, s.wi, s.wo, t.scale,
+                   t.target, t.weight, t.offset, BLOCK, out)
+        return out.sum(axis=0) / t.norm
+
+    def loss(self, x):
+        """The loss at ``x``."""
+        return float(self.channel_losses(x)[0].sum())
+
+    def difference_rows(self, x, step=STEP):
+        """The points of the central differences at ``x``: ``(rows, width)``.
+
+        ``rows`` is ``(1 + 2 G, n)``: x, then for each group of coordinates moved together x
+        with the group moved up and x with it moved down by h = ``step`` max(1, |x|), kept
+        inside the bounds; ``width`` ``(n,)`` is each coordinate's distance between its two
+        points. :meth:`difference_jacobian` turns outputs at these rows into derivatives.
+        """
+        x = np.asarray(x, dtype=float)
+        h = step * np.maximum(1.0, np.abs(x))
+        up, down = np.minimum(self.upper, x + h), np.maximum(self.lower, x - h)
+        rows = [x]
+        for g in self._groups:
+            for side in (up, down):
+                row = x.copy()
+                row[g] = side[g]
+                rows.append(row)
+        return np.array(rows), up - down
+
+    def difference_jacobian(self, outputs, width):
+        """Derivatives ``(..., C, n)`` of per-channel outputs ``(1 + 2 G, ..., C)`` computed at
+        :meth:`difference_rows` (a coordinate of one channel moves only that channel's outputs;
+        its derivatives for the other channels are 0)."""
+        outputs = np.asarray(outputs, dtype=float)
+        jac = np.zeros(outputs.shape[1:] + (len(width),))
+        for k, g in enumerate(self._groups):
+            diff = outputs[1 + 2 * k] - outputs[2 + 2 * k]
+            for i in g:
+                c = self.free[i].channel
+                if c is None:
+                    jac[..., i] = diff / width[i]
+                else:
+                    jac[..., c, i] = diff[..., c] / width[i]
+        return jac
+
+    def loss_and_gradient(self, x):
+        """``(loss, gradient)`` at ``x``, the gradient by central differences (class notes)."""
+        rows, width = self.difference_rows(x)
+        per = self.channel_losses(rows)
+        return float(per[0].sum()), self.difference_jacobian(per, width).sum(axis=0)
+
+    def gradient(self, x):
+        """Gradient of the loss at ``x`` by central differences (see the class notes)."""
+        return self.loss_and_gradient(x)[1]
+
+    def metrics(self, x):
+        """Every metric of :data:`brdf.fitting.losses.LOSSES` the data allow, at ``x``."""
+        names = [n for n in losses.LOSSES if n != "chi-square" or self.samples.sigma is not None]
+        return {n: self.loss(x) if n == self.loss_name else float(self.channel_losses(
+            x, losses.terms(n, self.samples, len(self.free)))[0].sum()) for n in names}
+
+
+@parallel_kernel
+def _loss_sums(kinds, offs, params, lobes, nch, wi, wo, scale, target, weight, offset, block,
+               out):
+    """``out[b, j, c]`` = sum over the samples k of block ``b`` of
+    weight_k (g(scale_kc f_j(wi_k, wo_k)_c) - target_kc)^2, for each parameter row ``j``; g is
+    the identity when ``offset`` is 0, else log(offset + .) (see brdf.fitting.losses.Terms).
+
+    A model is a sum of lobes, so row j > 0 evaluates only the lobes ``lobes[j]`` marks (those
+    whose parameters differ from row 0's) and reuses row 0's values of the others.
+    """
+    n = wi.shape[0]
+    nl = kinds.shape[0]
+    for b in prange(out.shape[0]):
+        lo = b * block
+        hi = min(n, lo + block)
+        base = np.zeros((nl, hi - lo, nch))
+        f = np.empty((hi - lo, nch))
+        for j in range(params.shape[0]):
+            f[:, :] = 0.0
+            for l in range(nl):
+                q = params[j, offs[l]:offs[l + 1]]
+                kind = kinds[l]
+                if j == 0:
+                    for k in range(lo, hi):
+                        lobe_eval(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
+                                  wo[k, 2], base[l], k - lo)
+                if j > 0 and lobes[j, l]:
+                    for k in range(lo, hi):
+                        lobe_eval(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
+                                  wo[k, 2], f, k - lo)
+                else:
+                    f += base[l]
+            for c in range(nch):
+                acc = 0.0
+                if offset > 0.0:
+                    for k in range(lo, hi):
+                        r = math.log(offset + scale[k, c] * f[k - lo, c]) - target[k, c]
+                        acc += weight[k] * r * r
+                else:
+                    for k in range(lo, hi):
+                        r = scale[k, c] * f[k - lo, c] - target[k, c]
+                        acc += weight[k] * r * r
+                out[b, j, c] = acc
