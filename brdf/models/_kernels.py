@@ -8,10 +8,14 @@ Every family module provides scalar kernels with these signatures (wi, wo in the
 - ``sample_(q, nch, ix, iy, iz, u1, u2) -> (ox, oy, oz, pdf)``: pdf 0 marks an invalid sample;
 - ``pdf_(q, nch, ix, iy, iz, ox, oy, oz) -> pdf`` (solid angle, 0 below the horizon);
 - ``hint_(q, nch, ix, iy, iz) -> float``: a cheap estimate of the albedo (channel mean), used only
-  to choose lobes when sampling a sum, so it changes variance, never the expected value.
+  to choose lobes when sampling a sum, so it changes variance, never the expected value;
+- optionally ``albedo_weight_``, the albedo's integrand f cos / pdf in closed form (see
+  ``lobe_weight``), where that is cheaper than ``eval`` and ``pdf`` or the albedo integrates the
+  lobe's terms apart.
 
 The same scalar functions serve checks, fitting, plots and the renderer: there is no second copy
-of any formula.
+of any formula. (The closed-form albedo weights are ratios of a family's formulas, simplified;
+tests hold them to ``eval`` cos / ``pdf``.)
 """
 
 import numpy as np
@@ -127,7 +131,52 @@ def delta_reflectance(kind, q, nch, ch, iz):
     return 0.0
 
 
+#: The largest double below 1: uniform numbers lie in [0, 1).
+BELOW_ONE = 1.0 - 2.0 ** -53
+#: Samples with cos(theta_o) below -HORIZON_MARGIN count as below the horizon (see lobe_weight).
 HORIZON_MARGIN = 1e-9
+
+
+@kernel
+def lobe_terms(kind):
+    """Number of terms the albedo integrates apart, each over its own sampler's unit square."""
+    if kind == K.ASHIKHMIN_SHIRLEY:
+        return ashikhmin_shirley.ALBEDO_TERMS
+    return 1
+
+
+@inline_kernel
+def lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, out):
+    """The albedo's integrand: f cos(theta_o) / pdf of term ``term`` of a lobe at the sample drawn
+    from (u1, u2), into ``out[0, :nch]``. Returns the sample's zone: -1 below the horizon (past
+    a margin: samplers map the square's edges onto the horizon itself), 0 otherwise invalid (no
+    weight), or the smooth piece of the integrand that holds the sample, 1 or more; where
+    neighbouring samples differ in zone the integrand may jump between them.
+
+    Families with a cheaper closed form of the ratio, with terms integrated apart or with
+    several pieces provide ``albedo_weight_``, which returns cos(theta_o) and the piece (0 when
+    invalid); for the others the weight is ``eval`` times cos / ``pdf`` at the sample."""
+    if kind == K.GGX:
+        oz, piece = microfacet.albedo_weight_(microfacet.GGX, q, nch, ix, iy, iz, u1, u2, out)
+    elif kind == K.BECKMANN:
+        oz, piece = microfacet.albedo_weight_(microfacet.BECKMANN, q, nch, ix, iy, iz, u1, u2,
+                                              out)
+    elif kind == K.ASHIKHMIN_SHIRLEY:
+        oz, piece = ashikhmin_shirley.albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out)
+    else:
+        ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
+        piece = 1 if (pdf > 0.0 and oz > 0.0) else 0
+        if piece:
+            for c in range(nch):
+                out[0, c] = 0.0
+            lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, 0)
+            s = oz / pdf
+            for c in range(nch):
+                out[0, c] *= s
+    if piece > 0:
+        return piece
+    return -1 if oz < -HORIZON_MARGIN else 0
+
 
 # --- mixtures --------------------------------------------------------------------------------
 
@@ -237,67 +286,120 @@ def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
 
 
 @kernel
-def _smoothstep(t):
-    """u = 3t^2 - 2t^3 and du/dt: samplers often have sqrt-like behaviour at the edges of their
-    square (e.g. theta_h ~ sqrt(1 - u)); this change of variables makes it smooth there and
-    spreads the thin edge strips where a grazing lobe meets the horizon over more nodes."""
-    return t * t * (3.0 - 2.0 * t), 6.0 * t * (1.0 - t)
+def _edge_warp(t):
+    """u = 10t^3 - 15t^4 + 6t^5 and du/dt = 30 t^2 (1 - t)^2 (the fade curve of Perlin 2002,
+    "Improving Noise", SIGGRAPH): samplers have sqrt-like or logarithmic behaviour at the edges
+    of their square (theta_h ~ sqrt(1 - u); Beckmann and Ward slopes grow like sqrt(-ln u)),
+    and where they are unbounded their edges meet the horizon. A Jacobian with a double zero at
+    the edges flattens both and shrinks the integrand in those edge strips, so a cut there
+    costs little: against 3t^2 - 2t^3 (a simple zero), Beckmann lobes need half the panels
+    (measured on the energy check's grids), other families about as many.
+
+    The curve is odd about t = 1/2, u(1 - t) = 1 - u(t): above 1/2 it is evaluated as 1 minus
+    the lower half, which keeps the digits of 1 - u that samplers use near u = 1, and u stays
+    below 1 as uniform numbers must.
+    """
+    s = min(t, 1.0 - t)
+    g = s * s * s * (10.0 + s * (6.0 * s - 15.0))
+    return (g if t <= 0.5 else min(1.0 - g, BELOW_ONE)), 30.0 * s * s * (1.0 - s) * (1.0 - s)
 
 
 @kernel
-def _panel(kind, q, nch, ix, iy, iz, x0, y0, h, xs, ws, f, acc):
+def _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs, ws, f, acc, zone, node):
     """Tensor Gauss rule (xs, ws on [0, 1]) of f cos / pdf over one square panel into ``acc``.
 
-    Returns the number of nodes mapped above and below the horizon and the largest integrand
-    value seen, from which the caller tells a panel that the horizon cuts through. (Samplers map
-    the square's edges onto the horizon itself, so "below" needs a margin.)
+    Node (a, b) leaves its zone (see ``lobe_weight``) in ``zone[a, b]`` and its integrand in
+    ``node[a, b, :nch]`` (0 where invalid). Returns a bit mask of the zones seen (bit zone + 1),
+    the largest step of the integrand between 4-neighbours in two nonzero zones (the jump that
+    the rule sees across a cut) and the largest |integrand| at any node.
     """
+    n = xs.shape[0]
     for c in range(nch):
         acc[c] = 0.0
-    valid = 0
-    below = 0
-    gmax = 0.0
-    for a in range(xs.shape[0]):
-        u1, j1 = _smoothstep(x0 + h * xs[a])
-        for b in range(xs.shape[0]):
-            u2, j2 = _smoothstep(y0 + h * xs[b])
-            ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
-            below += oz < -HORIZON_MARGIN
-            if pdf > 0.0 and oz > 0.0:
-                valid += 1
-                for c in range(nch):
-                    f[0, c] = 0.0
-                lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, f, 0)
-                s = oz / pdf * j1 * j2
-                for c in range(nch):
-                    gmax = max(gmax, abs(f[0, c] * s))
-                    acc[c] += f[0, c] * s * ws[a] * ws[b] * h * h
-    return valid, below, gmax
+    seen = 0
+    peak = 0.0
+    for a in range(n):
+        u1, j1 = _edge_warp(x0 + h * xs[a])
+        for b in range(n):
+            u2, j2 = _edge_warp(y0 + h * xs[b])
+            z = lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, f)
+            zone[a, b] = z
+            seen |= 1 << (z + 1)
+            for c in range(nch):
+                node[a, b, c] = f[0, c] * j1 * j2 if z > 0 else 0.0  # f is stale where z <= 0
+                acc[c] += node[a, b, c] * ws[a] * ws[b] * h * h
+                peak = max(peak, abs(node[a, b, c]))
+    step = 0.0
+    if _straddles(seen):
+        for a in range(n):
+            for b in range(n):
+                if zone[a, b] > 0:
+                    step = max(step, _step(zone, node, nch, n, a, b, a - 1, b),
+                               _step(zone, node, nch, n, a, b, a + 1, b),
+                               _step(zone, node, nch, n, a, b, a, b - 1),
+                               _step(zone, node, nch, n, a, b, a, b + 1))
+    return seen, step, peak
 
 
 @kernel
-def _estimate(kind, q, nch, ix, iy, iz, x0, y0, h, rules, f, val, lo, e):
+def _straddles(seen):
+    """Whether a zone mask (bit zone + 1) holds two zones other than 0: samples invalid for
+    another reason than the horizon mark no cut."""
+    rest = seen & ~2
+    return rest & (rest - 1) != 0
+
+
+@kernel
+def _step(zone, node, nch, n, a, b, a2, b2):
+    """Largest change of the integrand from node (a, b) to node (a2, b2) if the latter is inside
+    the n x n grid and in another nonzero zone, else 0."""
+    if not (0 <= a2 < n and 0 <= b2 < n) or zone[a2, b2] == 0 or zone[a2, b2] == zone[a, b]:
+        return 0.0
+    d = 0.0
+    for c in range(nch):
+        d = max(d, abs(node[a, b, c] - node[a2, b2, c]))
+    return d
+
+
+@kernel
+def _estimate(kind, q, nch, term, ix, iy, iz, x0, y0, h, rules, f, val, lo, e, zone, node):
     """High-order value of a panel into ``val``, its per-channel error estimate into ``e``.
 
-    The estimate is the difference to the embedded low-order rule; where the nodes and the
-    panel's corners disagree on validity the lobe is cut by the horizon inside the panel, the
-    integrand jumps, and the estimate becomes at least a tenth of the panel's area times the
-    largest integrand value (a jump costs at most the full product), so such panels are split.
+    The estimate is the difference to the embedded low-order rule, unless the panel straddles a
+    cut: where its nodes and corners fall in two zones (see ``lobe_weight``: the horizon, or a
+    seam between two pieces of the integrand) it may jump along the cut, which the two rules
+    can miss alike. Such a panel's estimate is at least a tenth of its area times the jump seen
+    across the cut: the largest change of the integrand between neighbouring nodes, or between
+    a corner and its nearest node, in two zones (0 on the invalid side; failing such pairs, the
+    largest value seen). A jump costs at most the panel's area times its size; where the
+    integrand is continuous across the cut (a microfacet's G1(wo) falls to 0 at the horizon, a
+    kink joins two pieces) neighbours across it differ little, and less as panels shrink, so
+    refinement follows the cut only until its panels are small enough.
     """
     xs_hi, ws_hi, xs_lo, ws_lo = rules
-    v1, n1, g1 = _panel(kind, q, nch, ix, iy, iz, x0, y0, h, xs_hi, ws_hi, f, val)
-    v2, n2, g2 = _panel(kind, q, nch, ix, iy, iz, x0, y0, h, xs_lo, ws_lo, f, lo)
-    valid = v1 + v2
-    invalid = n1 + n2
+    seen, step, peak = _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs_hi, ws_hi, f, val,
+                              zone, node)
+    # corners, against the 6 x 6 grid still in zone and node
+    m = xs_hi.shape[0] - 1
     eps = 1e-9 * h
     for corner in range(4):
-        u1, _ = _smoothstep(x0 + eps + (h - 2.0 * eps) * (corner % 2))
-        u2, _ = _smoothstep(y0 + eps + (h - 2.0 * eps) * (corner // 2))
-        _, _, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
-        if pdf > 0.0 and oz > 0.0:
-            valid += 1
-        invalid += oz < -HORIZON_MARGIN
-    jump = 0.1 * h * h * max(g1, g2) if (valid > 0 and invalid > 0) else 0.0
+        u1, j1 = _edge_warp(x0 + eps + (h - 2.0 * eps) * (corner % 2))
+        u2, j2 = _edge_warp(y0 + eps + (h - 2.0 * eps) * (corner // 2))
+        z = lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, f)
+        seen |= 1 << (z + 1)
+        a, b = m * (corner % 2), m * (corner // 2)
+        across = z != 0 and zone[a, b] != 0 and z != zone[a, b]
+        for c in range(nch):
+            g = f[0, c] * j1 * j2 if z > 0 else 0.0
+            peak = max(peak, abs(g))
+            if across:
+                step = max(step, abs(g - node[a, b, c]))
+    seen_lo, step_lo, peak_lo = _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs_lo, ws_lo,
+                                       f, lo, zone, node)
+    jump = 0.0
+    if _straddles(seen | seen_lo):
+        seen_step = max(step, step_lo)
+        jump = 0.1 * h * h * (seen_step if seen_step > 0.0 else max(peak, peak_lo))
     worst = 0.0
     for c in range(nch):
         e[c] = max(abs(val[c] - lo[c]), jump)
@@ -306,14 +408,14 @@ def _estimate(kind, q, nch, ix, iy, iz, x0, y0, h, rules, f, val, lo, e):
 
 
 @kernel
-def _lobe_albedo(kind, q, nch, ix, iy, iz, rules, tol, capacity, out, err):
-    """Adaptive cubature of one lobe's albedo over its sampling square.
+def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err):
+    """Adaptive cubature of one term of a lobe's albedo over its sampling square; returns the
+    number of panels used.
 
     Panels carry a high-order and an embedded low-order Gauss-Legendre estimate; the panel with
     the largest error estimate (see ``_estimate``) is split in four until the summed estimates
-    fall below ``tol`` times max(1, albedo) or ``capacity`` panels are used. A lobe cut by the
-    horizon (grazing wi) makes the integrand jump along a curve in the square: refinement
-    follows that curve.
+    fall below ``tol`` times max(1, albedo) or ``capacity`` panels are used. Where the horizon
+    or a seam between pieces cuts the square (see ``_estimate``), refinement follows the cut.
     """
     geo = np.empty((capacity, 3))
     val = np.empty((capacity, nch))
@@ -321,14 +423,16 @@ def _lobe_albedo(kind, q, nch, ix, iy, iz, rules, tol, capacity, out, err):
     pe = np.empty((capacity, nch))
     f = np.zeros((1, nch))
     lo = np.empty(nch)
-    side = 4
-    n = side * side
+    zone = np.empty((rules[0].shape[0], rules[0].shape[0]), dtype=np.int64)
+    node = np.empty((rules[0].shape[0], rules[0].shape[0], nch))
+    grid = 4
+    n = grid * grid
     for j in range(n):
-        geo[j, 0] = (j // side) / side
-        geo[j, 1] = (j % side) / side
-        geo[j, 2] = 1.0 / side
-        perr[j] = _estimate(kind, q, nch, ix, iy, iz, geo[j, 0], geo[j, 1], geo[j, 2], rules,
-                            f, val[j], lo, pe[j])
+        geo[j, 0] = (j // grid) / grid
+        geo[j, 1] = (j % grid) / grid
+        geo[j, 2] = 1.0 / grid
+        perr[j] = _estimate(kind, q, nch, term, ix, iy, iz, geo[j, 0], geo[j, 1], geo[j, 2],
+                            rules, f, val[j], lo, pe[j], zone, node)
     while n + 3 <= capacity:
         total = 0.0
         worst = 0
@@ -350,18 +454,23 @@ def _lobe_albedo(kind, q, nch, ix, iy, iz, rules, tol, capacity, out, err):
             geo[j, 0] = x0 + h * (child % 2)
             geo[j, 1] = y0 + h * (child // 2)
             geo[j, 2] = h
-            perr[j] = _estimate(kind, q, nch, ix, iy, iz, geo[j, 0], geo[j, 1], h, rules,
-                                f, val[j], lo, pe[j])
+            perr[j] = _estimate(kind, q, nch, term, ix, iy, iz, geo[j, 0], geo[j, 1], h, rules,
+                                f, val[j], lo, pe[j], zone, node)
         n += 3
     for j in range(n):
         for c in range(nch):
             out[c] += val[j, c]
             err[c] += pe[j, c]
+    return n
 
 
 @parallel_kernel
-def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err):
-    """Directional albedo per incident direction: delta lobes exactly, others adaptively."""
+def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels):
+    """Directional albedo per incident direction: delta lobes exactly, others adaptively.
+
+    ``panels[k]`` receives the number of cubature panels spent on direction k (each costs 49
+    samples: 36 + 9 Gauss nodes and 4 corners), a measure of work that load does not skew.
+    """
     for k in prange(wi.shape[0]):
         ix, iy, iz = wi[k, 0], wi[k, 1], wi[k, 2]
         for l in range(kinds.shape[0]):
@@ -371,4 +480,6 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err):
                 for c in range(nch):
                     out[k, c] += delta_reflectance(kind, q, nch, c, iz)
             elif iz > 0.0:
-                _lobe_albedo(kind, q, nch, ix, iy, iz, rules, tol, capacity, out[k], err[k])
+                for term in range(lobe_terms(kind)):
+                    panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
+                                              capacity, out[k], err[k])

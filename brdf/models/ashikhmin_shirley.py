@@ -12,7 +12,7 @@ rescaled) and the pdf is the mixture of both densities.
 import math
 
 from .._jit import inline_kernel, kernel
-from ..sampling import half_unit, reflect_about
+from ..sampling import half_unit, reflect_about, square_to_cosine_hemisphere
 from . import _kinds, lambert
 from ._registry import register
 from .base import Model, Param
@@ -32,6 +32,7 @@ class AshikhminShirley(Model):
     summary = "anisotropic Phong: Fresnel-weighted specular lobe plus a coupled diffuse term"
     citation = "Ashikhmin & Shirley 2000, An Anisotropic Phong BRDF Model, JGT 5(2), eqs. 4-10"
     kind = _kinds.ASHIKHMIN_SHIRLEY
+    mirror_symmetric = True  # eq. 4 squares h_x and h_y; k.h and the cosines are unchanged
     # Measured (tests/models/test_ashikhmin_shirley.py): the albedo is linear in rd and rs and
     # peaks at 0.9996 (rs = 1, nu = nv = 1e4, normal incidence) over all rd, rs in [0, 1].
     energy_conserving = True
@@ -109,30 +110,15 @@ def albedo_parts(q, nch, iz):
 
 
 @kernel
-def seam_aligned(w):
-    """``w`` moved to the nearest 3t^2 - 2t^3 with t a multiple of 1/16 in [1/16, 15/16].
-
-    The albedo cubature (``_kernels._lobe_albedo``) integrates over t with u = 3t^2 - 2t^3 on
-    panels of a 4 x 4 grid it halves; the sampler switches from specular to diffuse at u1 = w,
-    where its integrand jumps, and a jump inside a panel costs ~1e-4 of accuracy that the
-    error estimate does not see. Aligned, the jump lies on panel edges after one halving.
-    The clamp keeps at least 1 % of the samples for either term.
-    """
-    t = 0.5 - math.sin(math.asin(1.0 - 2.0 * w) / 3.0)  # inverse of u = 3t^2 - 2t^3
-    t = min(max(round(16.0 * t), 1.0), 15.0) / 16.0
-    return t * t * (3.0 - 2.0 * t)
-
-
-@kernel
 def specular_weight(q, nch, iz):
     """Probability of sampling the specular term rather than the diffuse one: its share of the
-    albedo estimates (keeps the weights f cos / pdf flat), aligned by :func:`seam_aligned`."""
+    albedo estimates, which keeps the weights f cos / pdf flat."""
     spec, diff = albedo_parts(q, nch, iz)
     if diff <= 0.0:
         return 1.0
     if spec <= 0.0:
         return 0.0
-    return seam_aligned(spec / (spec + diff))
+    return spec / (spec + diff)
 
 
 @inline_kernel
@@ -174,6 +160,45 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
     if oz <= 0.0:
         return ox, oy, oz, 0.0
     return ox, oy, oz, pdf_(q, nch, ix, iy, iz, ox, oy, oz)
+
+
+#: The albedo integrates the specular and the diffuse term apart (see ``albedo_weight_``).
+ALBEDO_TERMS = 2
+
+
+@kernel
+def albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out):
+    """f cos(theta_o) / pdf of one term, each over the unit square of its own sampler, into
+    ``out[0, :nch]``; returns cos(theta_o) and the smooth piece that holds the sample (0: none,
+    the sample is below the horizon).
+
+    Term 0 is the specular lobe (eq. 4) with h drawn from eq. 8: p_h / (4 k.h) cancels and the
+    weight is F(k.h) cos_o / max(cos_i, cos_o), whose two pieces meet in a kink at cos_o = cos_i
+    (at grazing incidence the piece cos_o < cos_i is a thin ramp along the horizon, as steep as
+    a jump). Term 1 is the diffuse term (eq. 5) with wo drawn from the cosine density
+    cos_o / pi: the weight is pi f_d = 28/23 rd (1 - rs) times the two angular factors. Apart,
+    each integrand is smooth on its pieces; the mixture that ``sample_`` draws from would put a
+    sharp lobe's dip (its pdf over the diffuse part) into the cubature's square.
+    """
+    if iz <= 0.0:
+        return 0.0, 0
+    if term == 0:
+        hx, hy, hz = sample_half(q[2 * nch], q[2 * nch + 1], u1, u2)
+        ox, oy, oz = reflect_about(ix, iy, iz, hx, hy, hz)
+        if oz <= 0.0:
+            return oz, 0
+        kh = ix * hx + iy * hy + iz * hz
+        s = oz / max(iz, oz)
+        for c in range(nch):
+            out[0, c] = schlick(q[nch + c], kh) * s
+        return oz, 2 if oz < iz else 1
+    _, _, oz = square_to_cosine_hemisphere(u1, u2)
+    if oz <= 0.0:
+        return oz, 0
+    d = math.pi * DIFFUSE_NORM * diffuse_factor(iz) * diffuse_factor(oz)
+    for c in range(nch):
+        out[0, c] = q[c] * (1.0 - q[nch + c]) * d
+    return oz, 1
 
 
 @kernel

@@ -336,6 +336,11 @@ class Model(Component):
     reciprocal = True
     #: True for delta lobes (eval is 0; all the energy is in ``sample``).
     delta = False
+    #: True when f(M wi, M wo) = f(wi, wo) for the mirrors M = diag(-1, 1, 1) and diag(1, -1, 1):
+    #: then a(M wi) = a(wi) (substitute M wo in the albedo integral), and ``albedo`` integrates
+    #: mirror-image incident directions once. Families that depend on x and y only through x^2,
+    #: y^2, products wi_x wo_x, wi_y wo_y, or rotation-invariant terms set it.
+    mirror_symmetric = False
 
     # -- composition ---------------------------------------------------------------------------
     def __add__(self, other):
@@ -435,6 +440,8 @@ class Model(Component):
         cubature: square panels with a 6 x 6 Gauss-Legendre rule and an embedded 3 x 3 one, the
         panel where they differ most split in four until the summed differences are below
         ``tol`` (relative to max(1, albedo)) or ``max_panels`` are used. Delta lobes are exact.
+        For a :attr:`mirror_symmetric` model, incident directions that are mirror images of
+        each other (equal up to the signs of x and y, to 1e-12) share one integral.
 
         Returns
         -------
@@ -443,16 +450,39 @@ class Model(Component):
             With ``return_error``: the summed panel error estimates, a conservative estimate of
             the absolute error.
         """
+        out, err, _ = self._albedo_cubature(wi, tol, max_panels)
+        return (out, err) if return_error else out
+
+    def _albedo_cubature(self, wi, tol=1e-5, max_panels=1024):
+        """:meth:`albedo`, its error estimate, and the number of cubature panels spent on each
+        direction (49 samples each; 0 where a mirror image's integral is shared): a measure of
+        the work that machine load does not skew, for ``benchmarks/bench_check.py``."""
+        import numba
         from . import _kernels
         wi = direction_array(wi, "wi")
         shape = wi.shape[:-1]
-        flat = np.ascontiguousarray(wi.reshape(-1, 3))
+        flat = wi.reshape(-1, 3)
+        if self.mirror_symmetric:
+            key = np.round(np.column_stack([np.abs(flat[:, :2]), flat[:, 2]]), 12)
+            _, first, shared = np.unique(key, axis=0, return_index=True, return_inverse=True)
+            shared = shared.reshape(-1)
+        else:
+            first = shared = np.arange(len(flat))
+        # numba hands each thread a contiguous chunk of the directions: dealing them out like
+        # cards gives every thread its share of the costly grazing ones, wherever they cluster
+        deal = np.argsort(np.arange(len(first)) % numba.get_num_threads(), kind="stable")
         c = self._compiled()
-        out = np.zeros((flat.shape[0], c.nch))
-        err = np.zeros((flat.shape[0], c.nch))
-        _kernels.albedo_array(*c.args, flat, _GAUSS_RULES, float(tol), int(max_panels), out, err)
-        out = out.reshape(shape + (c.nch,))
-        return (out, err.reshape(shape + (c.nch,))) if return_error else out
+        dealt = (np.zeros((len(first), c.nch)), np.zeros((len(first), c.nch)),
+                 np.zeros(len(first), dtype=np.int64))
+        _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _GAUSS_RULES,
+                              float(tol), int(max_panels), *dealt)
+        out, err, panels = (np.empty_like(a) for a in dealt)
+        for mine, theirs in zip((out, err, panels), dealt):
+            mine[deal] = theirs
+        work = np.zeros(len(flat), dtype=np.int64)
+        work[first] = panels
+        return (out[shared].reshape(shape + (c.nch,)), err[shared].reshape(shape + (c.nch,)),
+                work.reshape(shape))
 
 
 class Sum(Model):
@@ -486,6 +516,7 @@ class Sum(Model):
                                  and self._lobes[0].energy_conserving)
     reciprocal = property(lambda self: all(l.reciprocal for l in self._lobes))
     delta = property(lambda self: all(l.delta for l in self._lobes))
+    mirror_symmetric = property(lambda self: all(l.mirror_symmetric for l in self._lobes))
     is_anisotropic = property(lambda self: any(l.anisotropic for l in self._lobes))
 
     def lobe_names(self):

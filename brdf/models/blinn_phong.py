@@ -39,6 +39,7 @@ class BlinnPhong(Model):
     citation = ("Blinn 1977, Models of Light Reflection for Computer Synthesized Pictures; "
                 "exact normalisation: Giesen 2009; approx: Real-Time Rendering 3rd ed. 7.6")
     kind = _kinds.BLINN_PHONG
+    mirror_symmetric = True  # a function of cos(theta_h) only
     PARAMS = (Param("ks", 1.0, (0.0, 1.0), per_channel=True, aliases=("rho_s",),
                     doc="specular albedo at normal incidence (exact normalisation)",
                     fit_bounds=(0.0, 1.0)),

@@ -44,6 +44,7 @@ class Lafortune(Model):
     citation = ("Lafortune, Foo, Torrance & Greenberg 1997, Non-Linear Approximation of "
                 "Reflectance Functions, eqs. 3-4")
     kind = _kinds.LAFORTUNE
+    mirror_symmetric = True  # wi_x wo_x and wi_y wo_y keep their signs under M
     energy_conserving = False
     # n gets a log prior: it sets the lobe width (about 1/sqrt(n)), so equal prior mass per
     # decade treats n = 2 and n = 2000 alike; a log scale needs a positive floor, and n = 0.01

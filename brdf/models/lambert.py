@@ -21,6 +21,7 @@ class Lambert(Model):
     summary = "ideal diffuse, f = albedo / pi"
     citation = "Lambert 1760, Photometria; f = rho / pi"
     kind = _kinds.LAMBERT
+    mirror_symmetric = True  # f is a constant
     PARAMS = (Param("albedo", 0.5, (0.0, 1.0), per_channel=True, aliases=("rho", "rho_d", "kd"),
                     doc="directional-hemispherical reflectance", fit_bounds=(0.0, 1.0)),)
 

@@ -22,6 +22,7 @@ class Mirror(Model):
     summary = "perfect specular reflection (delta lobe)"
     citation = "Fresnel reflection in the mirror direction; PBR 4th ed. 9.3"
     kind = _kinds.MIRROR
+    mirror_symmetric = True  # the mirror direction of M wi is M times that of wi
     delta = True
     PARAMS = (Param("reflectance", 1.0, (0.0, 1.0), per_channel=True, aliases=("ks", "r"),
                     doc="reflectance scale"),

@@ -49,6 +49,7 @@ class Phong(Model):
     summary = "Phong 1975 specular lobe, f = ks cos^n(alpha) / cos(theta_i) (not reciprocal)"
     citation = _CITATION
     kind = _kinds.PHONG
+    mirror_symmetric = True  # a function of wo.reflect(wi) and cos(theta_i) only
     reciprocal = False
     energy_conserving = False
     PARAMS = (Param("ks", 1.0, (0.0, math.inf), per_channel=True, aliases=("rho_s",),
@@ -69,6 +70,7 @@ class ModifiedPhong(Model):
     summary = "normalised Phong lobe, f = ks (n+2)/(2 pi) cos^n(alpha)"
     citation = _CITATION
     kind = _kinds.MODIFIED_PHONG
+    mirror_symmetric = True  # a function of wo.reflect(wi) only
     PARAMS = (Param("ks", 1.0, (0.0, 1.0), per_channel=True, aliases=("rho_s",),
                     doc="specular albedo at normal incidence", fit_bounds=(0.0, 1.0)),
               EXPONENT)

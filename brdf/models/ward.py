@@ -55,6 +55,7 @@ class Ward(Model):
                 "Duer 2010, A New Ward BRDF Model with Bounded Albedo; sampling: Walter 2005, "
                 "Notes on the Ward BRDF")
     kind = _kinds.WARD
+    mirror_symmetric = True  # h_x, h_y enter squared, h_z and the cosines unchanged
     PARAMS = (
         Param("rho_s", 1.0, (0.0, 1.0), per_channel=True, aliases=("ks",),
               doc="specular reflectance", fit_bounds=(0.0, 1.0)),

@@ -127,7 +127,8 @@ def test_normal_incidence_albedo_closed_form(n):
     # the quadrature converges slowly; it must agree within its own error estimate
     albedo, error = m.albedo(wi, return_error=True)
     error = np.max(error)  # one incident direction, one channel
-    assert abs(albedo[0] - exact) <= error + 1e-14 and error < 1e-5
+    # the cubature's tolerance: 1e-5 of max(1, albedo)
+    assert abs(albedo[0] - exact) <= error + 1e-14 and error <= 1e-5 * max(1.0, exact)
     assert lafortune_module.hint_(np.array(m.pack(1)), 1, *wi) == pytest.approx(exact, rel=1e-12)
 
 

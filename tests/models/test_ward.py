@@ -197,6 +197,21 @@ def test_albedo_matches_scipy_for_an_anisotropic_lobe(variant):
     np.testing.assert_allclose(quad, [albedo_scipy(turned, t) for t in thetas], rtol=2e-4)
 
 
+@pytest.mark.parametrize("phi", [90.0, -90.0])
+def test_grazing_anisotropic_albedo_within_its_error(phi):
+    """Seen at 89.9 degrees across its narrow axis, the lobe meets the horizon so that a thin
+    valid strip of the sampler's square runs along panel edges, between all nodes; the cubature
+    must count it and stay within its error estimate (it once missed 3.3e-4 of this albedo while
+    claiming 1e-8). Turning wi by 90 degrees into the xz plane of scipy's oracle swaps alpha and
+    alpha_y (see test_rotation_by_90_degrees_swaps_alphas)."""
+    m = brdf.parse("ward(alpha=0.1, alpha_y=0.4, variant=gmd)")
+    t, p = math.radians(89.9), math.radians(phi)
+    wi = np.array([math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t)])
+    exact = albedo_scipy(lambda a, b: definition(a, b, 1.0, 0.4, 0.1, "gmd"), 89.9)
+    albedo, error = m.albedo(wi, return_error=True)
+    assert abs(albedo[0] - exact) <= error[0] + 1e-8
+
+
 # --- the half-vector density and sampling -----------------------------------------------------
 
 @pytest.mark.parametrize("ax, ay", [(0.3, 0.3), (0.05, 0.5), (1.2, 0.2)])

@@ -130,6 +130,23 @@ def test_albedo_at_most_one(model, incident):
     assert np.all(albedo <= 1.0 + 1e-3 + error), (str(model), incident, albedo)
 
 
+@settings(max_examples=40)
+@given(models(max_lobes=2), hemisphere())
+def test_mirror_images_share_the_albedo(model, wi):
+    """Every family declares ``mirror_symmetric``: its albedo is the same at (+-x, +-y, z).
+    Integrated one by one, the four images agree within their error estimates (so the
+    declaration holds); integrated in one call, they share the first image's integral."""
+    assert model.mirror_symmetric, str(model)
+    images = wi * np.array([[1.0, 1.0, 1.0], [-1.0, 1.0, 1.0], [1.0, -1.0, 1.0], [-1.0, -1.0, 1.0]])
+    first, first_error = model.albedo(images[0], return_error=True)
+    for image in images[1:]:
+        albedo, error = model.albedo(image, return_error=True)
+        assert np.all(np.abs(albedo - first) <= error + first_error + 1e-12), (str(model), wi)
+    together, work = model.albedo(images), model._albedo_cubature(images)[2]
+    np.testing.assert_array_equal(together, np.broadcast_to(first, together.shape))
+    assert np.count_nonzero(work) <= 1 and np.all(work[1:] == 0)
+
+
 @settings(max_examples=100)
 @given(models(), hemisphere(), uniforms)
 def test_pdf_and_weight_agree_with_sample(model, wi, u):
