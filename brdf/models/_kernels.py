@@ -257,14 +257,34 @@ def material_sample(kinds, offs, p, nch, ix, iy, iz, u1, u2, weight, k):
 @parallel_kernel
 def eval_array(kinds, offs, p, nch, wi, wo, out):
     """Add f(wi, wo) to ``out``: one parallel pass per lobe, so that each pass is a loop over a
-    single formula the compiler can vectorise."""
+    single formula the compiler can vectorise.
+
+    Lambertian lobes are summed into one albedo that rides along in the first other lobe's
+    pass: on its own a Lambertian pass is a full sweep over the directions and ``out`` for
+    next to no arithmetic (folding it saves a fifth of ``lambert + ggx``'s time).
+    """
     n = wi.shape[0]
+    diffuse = np.zeros(nch)
+    folded = False
+    others = [-1]  # lobe -1 (no formula) carries the Lambertian sum if nothing else does
     for l in range(kinds.shape[0]):
-        q = p[offs[l]:offs[l + 1]]
-        kind = kinds[l]
+        if kinds[l] == K.LAMBERT:
+            diffuse += p[offs[l]:offs[l] + nch]
+            folded = True
+        elif others[0] < 0:
+            others[0] = l
+        else:
+            others.append(l)
+    for i in range(len(others)):
+        l = others[i]
+        kind = kinds[l] if l >= 0 else -1
+        q = p[offs[l]:offs[l + 1]] if l >= 0 else p[:0]
+        fold = folded and i == 0
         for k in prange(n):
-            lobe_eval(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2],
-                      out, k)
+            ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]
+            if fold:
+                lambert.eval_(diffuse, nch, ix, iy, iz, ox, oy, oz, out, k)
+            lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k)
 
 
 @parallel_kernel
