@@ -430,18 +430,28 @@ def _add_corner(grid, i, j, p, wt, acc):
     return sr, sg, sb, wr, wg, wb
 
 
+@kernel
+def _pair_coordinates(wi, wo, k, out, inside):
+    """``(above, u, v, w)``: pair k's continuous grid coordinates, or ``above`` False (and
+    ``out[k]`` zero, ``inside[k]`` False) when a direction is below the horizon."""
+    iz, oz = wi[k, 2], wo[k, 2]
+    if iz <= 0.0 or oz <= 0.0:
+        out[k, :] = 0.0
+        inside[k] = False
+        return False, 0.0, 0.0, 0.0
+    u, v, w = grid_coordinates(wi[k, 0], wi[k, 1], iz, wo[k, 0], wo[k, 1], oz)
+    return True, u, v, w
+
+
 @parallel_kernel
 def _trilinear(grid, filled, wi, wo, out, inside):
     """Trilinear lookup over the valid corners of each cell (weights renormalised); the nearest
     valid sample (``filled``) where no corner with positive weight is valid."""
     n0, n1, n2, _ = grid.shape
     for k in prange(wi.shape[0]):
-        iz, oz = wi[k, 2], wo[k, 2]
-        if iz <= 0.0 or oz <= 0.0:
-            out[k, :] = 0.0
-            inside[k] = False
+        above, u, v, w = _pair_coordinates(wi, wo, k, out, inside)
+        if not above:
             continue
-        u, v, w = grid_coordinates(wi[k, 0], wi[k, 1], iz, wo[k, 0], wo[k, 1], oz)
         i0, fu = _clamped_cell(u, n0)
         j0, fv = _clamped_cell(v, n1)
         p0 = min(int(w), n2 - 1)
@@ -470,12 +480,9 @@ def _nearest(grid, filled, wi, wo, out, inside):
     """Value of the nearest node (the nearest valid sample where that node is missing)."""
     nch = grid.shape[3]
     for k in prange(wi.shape[0]):
-        iz, oz = wi[k, 2], wo[k, 2]
-        if iz <= 0.0 or oz <= 0.0:
-            out[k, :] = 0.0
-            inside[k] = False
+        above, u, v, w = _pair_coordinates(wi, wo, k, out, inside)
+        if not above:
             continue
-        u, v, w = grid_coordinates(wi[k, 0], wi[k, 1], iz, wo[k, 0], wo[k, 1], oz)
         i, j, p = _nearest_node(u, v, w, grid.shape)
         ok = True
         for c in range(nch):
