@@ -15,7 +15,7 @@ from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "mcmc", "Table", "models", "geometry", "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
@@ -37,3 +37,9 @@ def fit(data, spec, **options):
     """Fit a model spec to measured data with nlopt; see :func:`brdf.fitting.fit`."""
     from .fitting import fit as _fit
     return _fit(data, spec, **options)
+
+
+def mcmc(data, start, **options):
+    """Posterior of a model's parameters with emcee; see :func:`brdf.fitting.mcmc`."""
+    from .fitting import mcmc as _mcmc
+    return _mcmc(data, start, **options)

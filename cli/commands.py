@@ -243,27 +243,52 @@ def _assignments(items):
     return out
 
 
-def fit(args, out):
-    """Fit a spec to a table; write the JSON report atomically; exit 1 unless converged."""
-    import json
+def _refuse_existing(args, *paths):
+    """OutputError before any work if an output file exists and --force is not given."""
     from pathlib import Path
-    import brdf
     from brdf.errors import OutputError
+    for path in paths:
+        if path and Path(path).exists() and not args.force:
+            raise OutputError(f"{path}: exists; pass --force to replace it")
+
+
+def _write_json(document, path, force):
+    import json
     from brdf.io import atomic_output
-    if args.output and Path(args.output).exists() and not args.force:
-        raise OutputError(f"{args.output}: exists; pass --force to replace it")
-    result = brdf.fit(read_table(args.data), args.spec, loss=args.loss, optimizer=args.optimizer,
+    with atomic_output(path, force) as tmp:
+        tmp.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+
+
+def fit(args, out):
+    """Fit a spec to a table (and sample its posterior with --mcmc); write the JSON report
+    atomically; exit 1 unless converged."""
+    import brdf
+    from brdf.errors import InputError
+    _refuse_existing(args, args.output, args.chain, args.corner)
+    if not args.mcmc and (args.walkers or args.chain or args.corner):
+        raise InputError("--walkers, --chain and --corner need --mcmc")
+    table = read_table(args.data)
+    result = brdf.fit(table, args.spec, loss=args.loss, optimizer=args.optimizer,
                       starts=args.starts, energy_constraint=args.energy_constraint,
                       cutoff=args.cutoff, shared=args.shared, fix=_assignments(args.fix),
                       seed=args.seed, max_evals=args.max_evals)
     report = result.to_dict()
+    post = None
+    if args.mcmc:
+        post = brdf.mcmc(table, result, walkers=args.walkers, max_steps=args.max_steps,
+                         seed=args.seed, chain=args.chain, force=args.force)
+        timing = report.pop("timing")
+        report["posterior"] = post.to_dict()
+        report["timing"] = {**timing, "mcmc_s": post.seconds}
+        if args.corner:
+            post.corner(args.corner, force=args.force)
     if args.output:
-        with atomic_output(args.output, args.force) as tmp:
-            tmp.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n",
-                           encoding="utf-8")
+        _write_json(report, args.output, args.force)
     if args.json:
         out.json(report)
     else:
-        out.text(str(result))
+        out.text(str(result) + ("" if post is None else "\n" + str(post)))
+    if post is not None and not post.converged:
+        return EXIT_CHECK_FAILED
     failed = not result.converged or (args.energy_constraint and not result.energy["holds"])
     return EXIT_CHECK_FAILED if failed else EXIT_OK

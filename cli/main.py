@@ -198,7 +198,17 @@ def _fit_parser(sub):
     p.add_argument("--seed", type=arguments.seed, default=0,
                    help="seed of random starts and global optimizers (default: 0)")
     p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
-    p.add_argument("--force", action="store_true", help="replace REPORT if it exists")
+    p.add_argument("--force", action="store_true", help="replace existing output files")
+    m = p.add_argument_group("posterior (emcee)")
+    m.add_argument("--mcmc", action="store_true",
+                   help="after the fit, sample the posterior: medians, 68%% and 95%% intervals, "
+                        "correlations; exit 1 if the chain did not converge")
+    m.add_argument("--walkers", type=int, metavar="N",
+                   help="emcee walkers, even, >= 2 x parameters (default: max(32, 4 x them))")
+    m.add_argument("--max-steps", type=int, default=20000, metavar="N",
+                   help="cap on the chain length (default: 20000)")
+    m.add_argument("--chain", metavar="PATH", help="save the chain (.npz, or .h5 with h5py)")
+    m.add_argument("--corner", metavar="PNG", help="write a corner plot of the posterior")
 
 
 def _error(message):

@@ -2,11 +2,12 @@
 
 :func:`fit` (exported as ``brdf.fit``) finds point estimates with nlopt; :mod:`.losses` holds
 the error metrics, weights and cutoff; :mod:`.problem` maps parameter vectors to models and
-losses.
+losses; :func:`mcmc` (exported as ``brdf.mcmc``) samples posteriors with emcee.
 """
 
 from .losses import LOSSES
+from .mcmc import Posterior, mcmc
 from .nlopt_fit import OPTIMIZERS, FitResult, fit
 from .problem import Problem
 
-__all__ = ["fit", "FitResult", "Problem", "LOSSES", "OPTIMIZERS"]
+__all__ = ["fit", "FitResult", "mcmc", "Posterior", "Problem", "LOSSES", "OPTIMIZERS"]
