@@ -15,7 +15,7 @@ from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "mcmc", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "mcmc", "compare", "load_report", "Table", "models", "geometry", "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
@@ -43,3 +43,17 @@ def mcmc(data, start, **options):
     """Posterior of a model's parameters with emcee; see :func:`brdf.fitting.mcmc`."""
     from .fitting import mcmc as _mcmc
     return _mcmc(data, start, **options)
+
+
+def compare(data, specs, **options):
+    """Fit several specs to one table and rank them by AIC or BIC; see
+    :func:`brdf.fitting.compare`."""
+    from .fitting import compare as _compare
+    return _compare(data, specs, **options)
+
+
+def load_report(path):
+    """A saved JSON fit report back, with ``.model`` the fitted model; see
+    :func:`brdf.fitting.load_report`."""
+    from .fitting import load_report as _load_report
+    return _load_report(path)

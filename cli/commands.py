@@ -6,10 +6,12 @@ EXIT_OK, EXIT_CHECK_FAILED = 0, 1
 
 
 def load_subject(text, sample=None):
-    """What ``check``, ``eval``, ``albedo`` and ``synth`` work on: a measured table when
-    ``text`` names a file (or has a data file's extension), otherwise the model a spec
-    describes. ``sample`` picks one material of a file that holds several (CUReT)."""
+    """What ``check``, ``eval``, ``albedo`` and ``synth`` work on: the fitted model of a JSON
+    fit report, a measured table when ``text`` names a file (or has a data file's extension),
+    otherwise the model a spec describes. ``sample`` picks one material of a file that holds several (CUReT)."""
     import brdf
+    if text.lower().endswith(".json"):
+        return brdf.load_report(text).model
     if _names_file(text):
         return read_table(text, sample)
     return brdf.parse(text)
@@ -292,3 +294,23 @@ def fit(args, out):
         return EXIT_CHECK_FAILED
     failed = not result.converged or (args.energy_constraint and not result.energy["holds"])
     return EXIT_CHECK_FAILED if failed else EXIT_OK
+
+
+def compare(args, out):
+    """Fit several specs to one table and print them ranked; exit 1 if a fit did not
+    converge."""
+    import brdf
+    _refuse_existing(args, args.output)
+    result = brdf.compare(read_table(args.data), args.specs, by=args.by, loss=args.loss,
+                          optimizer=args.optimizer, starts=args.starts,
+                          energy_constraint=args.energy_constraint, cutoff=args.cutoff,
+                          shared=args.shared, fix=_assignments(args.fix), seed=args.seed,
+                          max_evals=args.max_evals)
+    document = result.to_dict()
+    if args.output:
+        _write_json(document, args.output, args.force)
+    if args.json:
+        out.json(document)
+    else:
+        out.text(str(result))
+    return EXIT_OK if all(r["converged"] for r in result.rows) else EXIT_CHECK_FAILED

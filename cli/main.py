@@ -22,8 +22,10 @@ Angles are in degrees: theta from the normal (0 to 90), phi from the tangent x t
 Run 'brdf-fit SUBCOMMAND --help' for the options of a subcommand."""
 
 SUBJECT_HELP = ("model spec, e.g. \"lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)\" "
-                "(see 'brdf-fit models'), or a measured table file (MERL .binary, .csv, "
-                ".npz, ...; see 'brdf-fit info')")
+                "(see 'brdf-fit models'), a measured table file (MERL .binary, .csv, "
+                ".npz, ...; see 'brdf-fit info') or a JSON fit report (brdf-fit fit -o)")
+DATA_HELP = ("a measured table (MERL .binary, .csv, .npz, RGL .bsdf, ...; see 'brdf-fit "
+             "info')")
 GEOMETRY_HELP = ("merl (the full MERL grid), inplane:STEP, grid:DTHETA,DPHI, random:N or "
                  "random:N:cosine, or a CSV of angles theta_i,phi_i,theta_o,phi_o (degrees)")
 
@@ -157,22 +159,12 @@ def build_parser():
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     _fit_parser(sub)
+    _compare_parser(sub)
     return parser
 
 
-def _fit_parser(sub):
-    # names and defaults as in brdf.fitting (not imported here: --help stays fast)
-    p = _subcommand(sub, "fit", commands.fit, "fit a model to a measured table (nlopt)",
-                    "Fit a model spec to a measured table: minimise a loss over the samples "
-                    "within the grazing cutoff, starting from the spec's parameter values. "
-                    "Prints the fitted parameters, every metric, the optimizer's status and the "
-                    "physical checks of the result. Exit status 1 when the fit did not "
-                    "converge (or, with --energy-constraint, the energy check still fails).",
-                    "print the fit report as JSON")
-    p.add_argument("data", metavar="DATA", help="a measured table (MERL .binary, .csv, .npz, "
-                   "RGL .bsdf, ...; see 'brdf-fit info')")
-    p.add_argument("spec", metavar="SPEC", help="the model to fit, e.g. \"lambert + "
-                   "ggx(alpha=0.3)\"; its values are the starting point")
+def _fit_options(p):
+    """The options of a fit, shared by fit and compare (names and defaults as in brdf.fit)."""
     p.add_argument("--loss", default="cosine-l2", metavar="LOSS",
                    help="cosine-l2 (Ngan et al. 2005), l2, relative-l2, log (Loew et al. 2012 "
                         "E2) or chi-square (tables with sigma) (default: cosine-l2)")
@@ -197,6 +189,21 @@ def _fit_parser(sub):
                    help="objective evaluations per run (default: 2000)")
     p.add_argument("--seed", type=arguments.seed, default=0,
                    help="seed of random starts and global optimizers (default: 0)")
+
+
+def _fit_parser(sub):
+    # names and defaults as in brdf.fitting (not imported here: --help stays fast)
+    p = _subcommand(sub, "fit", commands.fit, "fit a model to a measured table (nlopt)",
+                    "Fit a model spec to a measured table: minimise a loss over the samples "
+                    "within the grazing cutoff, starting from the spec's parameter values. "
+                    "Prints the fitted parameters, every metric, the optimizer's status and the "
+                    "physical checks of the result. Exit status 1 when the fit did not "
+                    "converge (or, with --energy-constraint, the energy check still fails).",
+                    "print the fit report as JSON")
+    p.add_argument("data", metavar="DATA", help=DATA_HELP)
+    p.add_argument("spec", metavar="SPEC", help="the model to fit, e.g. \"lambert + "
+                   "ggx(alpha=0.3)\"; its values are the starting point")
+    _fit_options(p)
     p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
     p.add_argument("--force", action="store_true", help="replace existing output files")
     m = p.add_argument_group("posterior (emcee)")
@@ -209,6 +216,21 @@ def _fit_parser(sub):
                    help="cap on the chain length (default: 20000)")
     m.add_argument("--chain", metavar="PATH", help="save the chain (.npz, or .h5 with h5py)")
     m.add_argument("--corner", metavar="PNG", help="write a corner plot of the posterior")
+
+
+def _compare_parser(sub):
+    p = _subcommand(sub, "compare", commands.compare, "fit several models and rank them (AIC/BIC)",
+                    "Fit each SPEC to DATA with the same options and print one table: loss, "
+                    "parameter count, AIC, BIC, their difference to the best, Akaike weights, "
+                    "convergence and physical checks, best first. Exit status 1 when a fit did "
+                    "not converge.", "print the comparison as JSON")
+    p.add_argument("data", metavar="DATA", help=DATA_HELP)
+    p.add_argument("specs", metavar="SPEC", nargs="+", help="two or more models to fit")
+    p.add_argument("--by", choices=("aic", "bic"), default="aic",
+                   help="the criterion that orders the table (default: aic)")
+    _fit_options(p)
+    p.add_argument("-o", "--output", metavar="JSON", help="write the comparison here")
+    p.add_argument("--force", action="store_true", help="replace JSON if it exists")
 
 
 def _error(message):

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError
 from . import losses
 from .problem import Problem
+from .report import SCHEMA
 
 __all__ = ["fit", "FitResult", "OPTIMIZERS", "ENERGY_THETA", "ENERGY_PHI", "DEFAULT_MAX_EVALS",
            "DEFAULT_TOL", "energy_angles"]
@@ -73,7 +74,6 @@ _CONVERGED = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED")
 _STATUS = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED", "MAXEVAL_REACHED",
            "MAXTIME_REACHED", "FAILURE", "INVALID_ARGS", "OUT_OF_MEMORY", "ROUNDOFF_LIMITED",
            "FORCED_STOP")
-REPORT_SCHEMA = "brdf.fit/1"
 
 
 @dataclass(frozen=True)
@@ -143,7 +143,7 @@ class FitResult:
         """JSON-ready report; ``timing`` is its last key (drop it to compare runs)."""
         from ..properties import json_ready
         return json_ready({
-            "schema": REPORT_SCHEMA, "spec": self.spec, "model": self.model.to_dict(),
+            "schema": SCHEMA, "spec": self.spec, "model": self.model.to_dict(),
             "params": self.params, "free": list(self.free), "fixed": self.fixed,
             "bounds": self.bounds, "loss": {"name": self.loss_name, "value": self.loss},
             "metrics": self.metrics, "status": self.status, "converged": self.converged,

@@ -1,0 +1,102 @@
+"""Model comparison: fit several specs to one table and rank them by AIC or BIC."""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .report import information_criteria
+
+__all__ = ["compare", "Comparison", "CRITERIA"]
+
+CRITERIA = ("aic", "bic")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Fits of several specs to one table, best first (:func:`compare`).
+
+    Attributes
+    ----------
+    by : str
+        The criterion that orders them, ``"aic"`` or ``"bic"``.
+    rows : tuple of dict
+        One per spec, best first: spec (the start), fitted (the fitted spec), n, k, loss,
+        metrics, likelihood, aic, bic, delta (of the criterion against the best), weight
+        (Akaike or Schwarz weight, exp(-delta / 2) normalised: the relative support of each
+        model within this set, Burnham & Anderson 2002, sec. 2.9), converged, checks_pass.
+    results : tuple of FitResult
+        The fits, in the same order.
+    """
+
+    by: str
+    rows: tuple
+    results: tuple
+
+    @property
+    def best(self):
+        return self.results[0]
+
+    def to_dict(self):
+        return {"schema": "brdf.compare/1", "by": self.by, "models": list(self.rows)}
+
+    def __str__(self):
+        from ..properties import format_table
+        body = [(str(i + 1), r["spec"], str(r["k"]), f"{r['loss']:.6g}", f"{r['aic']:.2f}",
+                 f"{r['bic']:.2f}", f"{r['delta']:.2f}", f"{r['weight']:.3f}",
+                 "yes" if r["converged"] else "NO", "pass" if r["checks_pass"] else "FAIL")
+                for i, r in enumerate(self.rows)]
+        head = ("rank", "spec", "k", self.rows[0]["loss_name"], "AIC", "BIC",
+                f"d{self.by.upper()}", "weight", "converged", "checks")
+        notes = (f"n = {self.rows[0]['n']:,} measured values; likelihood: "
+                 f"{self.rows[0]['likelihood']}; best first by {self.by.upper()}")
+        return "\n".join([format_table(head, body, "rlrrrrrrll"), notes,
+                          f"best: {self.rows[0]['fitted']}"])
+
+
+def compare(data, specs, *, by="aic", **fit_options):
+    """Fit each spec to ``data`` with the same options and rank the fits.
+
+    Parameters
+    ----------
+    data : Table or path
+    specs : sequence of str or Model
+        At least two models.
+    by : {"aic", "bic"}
+        The criterion that orders the table (see
+        :func:`brdf.fitting.report.information_criteria` for the likelihood behind both).
+    **fit_options
+        Passed to :func:`brdf.fit` for every spec (loss, optimizer, starts, cutoff,
+        energy_constraint, seed, ...).
+
+    Returns
+    -------
+    Comparison
+    """
+    from .nlopt_fit import _load, fit
+    if by not in CRITERIA:
+        raise InputError(f"unknown criterion {by!r}; criteria: {', '.join(CRITERIA)}")
+    specs = list(specs)
+    if len(specs) < 2:
+        raise InputError(f"compare needs at least two specs, got {len(specs)}")
+    table = _load(data)
+    results = [fit(table, spec, **fit_options) for spec in specs]
+    rows = [_row(spec, r) for spec, r in zip(specs, results)]
+    order = sorted(range(len(rows)), key=lambda i: (rows[i][by], i))
+    best = rows[order[0]][by]
+    support = np.array([math.exp(-0.5 * (rows[i][by] - best)) for i in order])
+    ranked = []
+    for i, s in zip(order, support / support.sum()):
+        ranked.append({**rows[i], "delta": rows[i][by] - best, "weight": float(s)})
+    return Comparison(by, tuple(ranked), tuple(results[i] for i in order))
+
+
+def _row(spec, result):
+    ic = information_criteria(result.metrics, result.loss_name, result.data["values_used"],
+                              len(result.free))
+    return {"spec": str(spec), "fitted": result.spec, "n": ic["n"], "k": ic["k"],
+            "loss_name": result.loss_name, "loss": result.loss, "metrics": result.metrics,
+            "likelihood": ic["likelihood"], "aic": ic["aic"], "bic": ic["bic"],
+            "converged": result.converged,
+            "checks_pass": all(c["passed"] is not False for c in result.checks["checks"])}
