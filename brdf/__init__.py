@@ -15,7 +15,7 @@ from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "mcmc", "compare", "load_report", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "mcmc", "compare", "batch", "load_report", "Table", "models", "geometry", "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
@@ -57,3 +57,10 @@ def load_report(path):
     :func:`brdf.fitting.load_report`."""
     from .fitting import load_report as _load_report
     return _load_report(path)
+
+
+def batch(inputs, spec, outdir, **options):
+    """Fit one spec to many files (local processes or a Dask cluster), resumable; see
+    :func:`brdf.fitting.batch`."""
+    from .fitting import batch as _batch
+    return _batch(inputs, spec, outdir, **options)

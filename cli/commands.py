@@ -314,3 +314,19 @@ def compare(args, out):
     else:
         out.text(str(result))
     return EXIT_OK if all(r["converged"] for r in result.rows) else EXIT_CHECK_FAILED
+
+
+def batch(args, out):
+    """Fit one spec to many files; exit 1 if any failed or did not converge."""
+    import brdf
+    result = brdf.batch(args.inputs, args.spec, args.output, jobs=args.jobs,
+                        scheduler=args.scheduler, force=args.force, loss=args.loss,
+                        optimizer=args.optimizer, starts=args.starts,
+                        energy_constraint=args.energy_constraint, cutoff=args.cutoff,
+                        shared=args.shared, fix=_assignments(args.fix), seed=args.seed,
+                        max_evals=args.max_evals)
+    if args.json:
+        out.json(result.to_dict())
+    else:
+        out.text(str(result))
+    return EXIT_OK if result.ok else EXIT_CHECK_FAILED

@@ -160,6 +160,7 @@ def build_parser():
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     _fit_parser(sub)
     _compare_parser(sub)
+    _batch_parser(sub)
     return parser
 
 
@@ -231,6 +232,27 @@ def _compare_parser(sub):
     _fit_options(p)
     p.add_argument("-o", "--output", metavar="JSON", help="write the comparison here")
     p.add_argument("--force", action="store_true", help="replace JSON if it exists")
+
+
+def _batch_parser(sub):
+    p = _subcommand(sub, "batch", commands.batch, "fit one model to many tables",
+                    "Fit SPEC to every file GLOB matches (quote it: the command expands it, "
+                    "** included) and write OUTDIR/<stem>.json per file plus OUTDIR/summary.csv "
+                    "and summary.json. Runs resume: files whose report matches (input SHA-256, "
+                    "spec, options) are skipped; one file's failure does not stop the others. "
+                    "Exit status 1 when a file failed or did not converge.",
+                    "print the summary as JSON")
+    p.add_argument("inputs", metavar="GLOB", help="input files, e.g. 'scans/**/*.binary'")
+    p.add_argument("spec", metavar="SPEC", help="the model to fit to each file")
+    p.add_argument("-o", "--output", metavar="OUTDIR", required=True,
+                   help="folder for the reports and the summary (created if missing)")
+    p.add_argument("--jobs", type=int, metavar="N",
+                   help="local worker processes (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the fits on a Dask distributed cluster, e.g. tcp://host:8786 "
+                        "(its workers must see the input paths); needs brdf[dask]")
+    _fit_options(p)
+    p.add_argument("--force", action="store_true", help="refit files that have a report")
 
 
 def _error(message):
