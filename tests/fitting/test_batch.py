@@ -1,0 +1,50 @@
+"""brdf.batch: one report per file, resume, a bad file among good ones, a Dask cluster."""
+
+import json
+
+import pytest
+
+import brdf
+
+SPEC = "lambert + ggx(alpha=0.4, ks=0.5)"
+
+
+@pytest.fixture
+def folder(tmp_path):
+    for i, albedo in enumerate((0.3, 0.5)):
+        brdf.write(brdf.measure(f"lambert(albedo={albedo}) + ggx(alpha=0.3, ks=0.2)",
+                                "random:200", seed=i), tmp_path / f"t{i}.csv")
+    (tmp_path / "bad.csv").write_text("theta_i,phi_i\n1,2\n")
+    return tmp_path
+
+
+def test_batch_fits_each_file_reports_the_bad_one_and_resumes(folder):
+    out = folder / "out"
+    r = brdf.batch(str(folder / "*.csv"), SPEC, out, jobs=1)
+    assert [row["status"] for row in r.rows] == ["failed", "fitted", "fitted"]
+    assert "bad.csv" in r.rows[0]["error"] and not r.ok
+    assert abs(r.rows[2]["lambert.albedo"] - 0.5) < 1e-3
+    report = out / "t1.json"
+    assert json.loads(report.read_text())["converged"]
+    before = report.read_bytes()
+    again = brdf.batch(str(folder / "t*.csv"), SPEC, out, jobs=1)
+    assert [row["status"] for row in again.rows] == ["skipped", "skipped"] and again.ok
+    assert report.read_bytes() == before
+    changed = brdf.batch(str(folder / "t*.csv"), SPEC, out, jobs=1, cutoff=70)
+    assert [row["status"] for row in changed.rows] == ["failed", "failed"]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"]["failed"] == 2
+
+
+def test_batch_runs_on_a_dask_cluster(folder):
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,
+                                  dashboard_address=None) as cluster:
+        r = brdf.batch(str(folder / "t*.csv"), SPEC, folder / "out",
+                       scheduler=cluster.scheduler_address)
+    assert [row["status"] for row in r.rows] == ["fitted", "fitted"]
+
+
+def test_a_glob_matching_nothing_is_an_input_error(tmp_path):
+    with pytest.raises(brdf.InputError, match="no input file matches"):
+        brdf.batch(str(tmp_path / "*.binary"), SPEC, tmp_path / "out")
