@@ -9,7 +9,7 @@ import argparse
 import sys
 import textwrap
 
-from . import arguments, commands
+from . import arguments, commands, render
 from .output import Output
 
 PROG = "brdf-fit"
@@ -161,6 +161,7 @@ def build_parser():
     _fit_parser(sub)
     _compare_parser(sub)
     _batch_parser(sub)
+    render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     return parser
 
 

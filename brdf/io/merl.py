@@ -443,36 +443,47 @@ def _pair_coordinates(wi, wo, k, out, inside):
     return True, u, v, w
 
 
+@kernel
+def trilinear_pair(grid, filled, ix, iy, iz, ox, oy, oz, out, k):
+    """Trilinear lookup of one pair above the horizon into ``out[k, :3]`` over the valid corners
+    of its cell (weights renormalised), the nearest valid sample (``filled``) where no corner
+    with positive weight is valid. Returns whether every channel had a valid corner. The
+    array lookup and the renderer's measured materials share it."""
+    n0, n1, n2, _ = grid.shape
+    u, v, w = grid_coordinates(ix, iy, iz, ox, oy, oz)
+    i0, fu = _clamped_cell(u, n0)
+    j0, fv = _clamped_cell(v, n1)
+    p0 = min(int(w), n2 - 1)
+    fw = w - p0
+    p1 = p0 + 1 if p0 + 1 < n2 else 0  # phi_d wraps over pi
+    acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for di in range(2):
+        wu = fu if di else 1.0 - fu
+        for dj in range(2):
+            wv = wu * (fv if dj else 1.0 - fv)
+            acc = _add_corner(grid, i0 + di, j0 + dj, p0, wv * (1.0 - fw), acc)
+            acc = _add_corner(grid, i0 + di, j0 + dj, p1, wv * fw, acc)
+    ok = True
+    for c in range(3):
+        if acc[3 + c] > 0.0:
+            out[k, c] = acc[c] / acc[3 + c]
+        else:
+            i, j, p = _nearest_node(u, v, w, grid.shape)
+            out[k, c] = filled[i, j, p, c]
+            ok = False
+    return ok
+
+
 @parallel_kernel
 def _trilinear(grid, filled, wi, wo, out, inside):
-    """Trilinear lookup over the valid corners of each cell (weights renormalised); the nearest
-    valid sample (``filled``) where no corner with positive weight is valid."""
-    n0, n1, n2, _ = grid.shape
+    """Trilinear lookup of every pair (:func:`trilinear_pair`); 0 below the horizon."""
     for k in prange(wi.shape[0]):
-        above, u, v, w = _pair_coordinates(wi, wo, k, out, inside)
-        if not above:
+        if wi[k, 2] <= 0.0 or wo[k, 2] <= 0.0:
+            out[k, :] = 0.0
+            inside[k] = False
             continue
-        i0, fu = _clamped_cell(u, n0)
-        j0, fv = _clamped_cell(v, n1)
-        p0 = min(int(w), n2 - 1)
-        fw = w - p0
-        p1 = p0 + 1 if p0 + 1 < n2 else 0  # phi_d wraps over pi
-        acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        for di in range(2):
-            wu = fu if di else 1.0 - fu
-            for dj in range(2):
-                wv = wu * (fv if dj else 1.0 - fv)
-                acc = _add_corner(grid, i0 + di, j0 + dj, p0, wv * (1.0 - fw), acc)
-                acc = _add_corner(grid, i0 + di, j0 + dj, p1, wv * fw, acc)
-        ok = True
-        for c in range(3):
-            if acc[3 + c] > 0.0:
-                out[k, c] = acc[c] / acc[3 + c]
-            else:
-                i, j, p = _nearest_node(u, v, w, grid.shape)
-                out[k, c] = filled[i, j, p, c]
-                ok = False
-        inside[k] = ok
+        inside[k] = trilinear_pair(grid, filled, wi[k, 0], wi[k, 1], wi[k, 2],
+                                   wo[k, 0], wo[k, 1], wo[k, 2], out, k)
 
 
 @parallel_kernel

@@ -226,13 +226,14 @@ def material_sample(kinds, offs, p, nch, ix, iy, iz, u1, u2, weight, k):
     chosen = nl - 1
     w = 1.0
     lo = 0.0
-    for l in range(nl):
-        w = _selection(kinds, offs, p, nch, ix, iy, iz, l)
-        if u1 < lo + w or l == nl - 1:
-            chosen = l
-            break
-        lo += w
-    u1 = min(max((u1 - lo) / w, 0.0), 0.9999999999999999) if w > 0.0 else u1
+    if nl > 1:  # a single lobe is picked with probability 1, hint or not
+        for l in range(nl):
+            w = _selection(kinds, offs, p, nch, ix, iy, iz, l)
+            if u1 < lo + w or l == nl - 1:
+                chosen = l
+                break
+            lo += w
+        u1 = min(max((u1 - lo) / w, 0.0), 0.9999999999999999) if w > 0.0 else u1
     kind = kinds[chosen]
     q = p[offs[chosen]:offs[chosen + 1]]
     ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)

@@ -1,0 +1,265 @@
+"""Light sources in the renderer (numba kernels): sampling for next-event estimation, and the
+radiance and density of emitters that paths hit.
+
+Light arrays (see :class:`brdf.render.scene.Compiled`): ``ltype (nl,)``, ``lf (nl, 16)``,
+selection probabilities ``pmf (nl,)``, goniometric tables ``gonio (ng, GONIO_THETA,
+GONIO_PHI)``, the environment map ``env (h, w, 3)`` with its row and per-row CDFs ``env_rows
+(h + 1,)``, ``env_cols (h, w + 1)``, and ``env_light``, the index of the environment (-1: none).
+
+Fields of ``lf`` by type (positions and directions in world space, colours RGB):
+
+- POINT: position 0-2, intensity I 3-5 (W/sr), attenuation a, b, c 6-8;
+- SPOT: as POINT, then the axis 9-11, cos(cutoff) 12, falloff exponent 13;
+- DIRECTIONAL: direction of travel 0-2, irradiance E 3-5 (W/m^2 normal to the beam);
+- AREA: primitive 0, emitting sides 1 (1 front, 2 back, 3 both), area 2, radiance L 3-5;
+- GONIO: as POINT, then the axis of theta = 0 9-11, the axis of phi = 0 12-14, table 15;
+- ENV: radiance scale 3-5 (times the map, or alone when there is no map), map flag 0, the
+  rotation from world to map frame 6-14 (row-major).
+"""
+
+import math
+
+from .._jit import inline_kernel, kernel
+from ._intersect import SPHERE
+from .. import sampling
+
+POINT, SPOT, DIRECTIONAL, AREA, GONIO, ENV = 0, 1, 2, 3, 4, 5
+FRONT, BACK = 1, 2
+#: Resolution of the goniometric tables after resampling (1 degree in theta, 2 in phi).
+GONIO_THETA, GONIO_PHI = 181, 181
+
+
+@inline_kernel
+def attenuation(f, r):
+    """1 / (a r^2 + b r + c): the point-light attenuation of classic course notes (OpenGL 1.x
+    fixed-function lighting, glLight GL_*_ATTENUATION; a = 1, b = c = 0 is the inverse-square
+    law)."""
+    return 1.0 / (f[6] * r * r + f[7] * r + f[8])
+
+
+@inline_kernel
+def gonio_intensity(table, f, dx, dy, dz):
+    """Scale of the intensity of a goniometric light towards unit direction d: bilinear in its
+    (theta, phi) table, theta from the axis f[9:12], phi from f[12:15] about it."""
+    ax, ay, az = f[9], f[10], f[11]
+    bx, by, bz = f[12], f[13], f[14]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    ct = dx * ax + dy * ay + dz * az
+    theta = math.acos(min(max(ct, -1.0), 1.0))
+    phi = math.atan2(dx * cx + dy * cy + dz * cz, dx * bx + dy * by + dz * bz) % (2.0 * math.pi)
+    t = int(f[15])
+    x = theta / math.pi * (GONIO_THETA - 1)
+    y = phi / (2.0 * math.pi) * (GONIO_PHI - 1)
+    i = min(int(x), GONIO_THETA - 2)
+    j = min(int(y), GONIO_PHI - 2)
+    fx, fy = x - i, y - j
+    return ((1.0 - fx) * ((1.0 - fy) * table[t, i, j] + fy * table[t, i, j + 1])
+            + fx * ((1.0 - fy) * table[t, i + 1, j] + fy * table[t, i + 1, j + 1]))
+
+
+# --- environment --------------------------------------------------------------------------------
+
+@inline_kernel
+def _env_local(f, dx, dy, dz):
+    return (f[6] * dx + f[7] * dy + f[8] * dz,
+            f[9] * dx + f[10] * dy + f[11] * dz,
+            f[12] * dx + f[13] * dy + f[14] * dz)
+
+
+@inline_kernel
+def _env_pixel(env, x, y, z):
+    """Pixel of an equirectangular map holding direction (x, y, z) in the map's frame, with
+    Mitsuba 3's envmap layout: u = atan2(x, -z) / 2 pi, v = acos(y) / pi, row 0 at the top."""
+    h, w = env.shape[0], env.shape[1]
+    u = (math.atan2(x, -z) / (2.0 * math.pi)) % 1.0
+    v = math.acos(min(max(y, -1.0), 1.0)) / math.pi
+    return min(int(v * h), h - 1), min(int(u * w), w - 1), v
+
+
+@inline_kernel
+def env_radiance(lf, env, e, dx, dy, dz, c):
+    """Radiance in channel c of environment light e along world direction d (0 if e < 0)."""
+    if e < 0:
+        return 0.0
+    f = lf[e]
+    if f[0] == 0.0:
+        return f[3 + c]
+    x, y, z = _env_local(f, dx, dy, dz)
+    i, j, _ = _env_pixel(env, x, y, z)
+    return f[3 + c] * env[i, j, c]
+
+
+@inline_kernel
+def env_pdf(lf, env, rows, cols, e, dx, dy, dz):
+    """Solid-angle density of :func:`_sample_env` for direction d: uniform over the sphere for
+    a constant environment; for a map the pixel's probability over its solid angle,
+    p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of variables)."""
+    f = lf[e]
+    if f[0] == 0.0:
+        return 1.0 / (4.0 * math.pi)
+    h, w = env.shape[0], env.shape[1]
+    x, y, z = _env_local(f, dx, dy, dz)
+    i, j, v = _env_pixel(env, x, y, z)
+    s = math.sin(v * math.pi)
+    if s <= 0.0:
+        return 0.0
+    p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
+    return p / (2.0 * math.pi * math.pi * s)
+
+
+@inline_kernel
+def _invert(cdf, u):
+    """Index i with cdf[i] <= u < cdf[i + 1] and the fraction of u within that bin."""
+    lo, hi = 0, cdf.shape[0] - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if cdf[mid] <= u:
+            lo = mid
+        else:
+            hi = mid
+    width = cdf[lo + 1] - cdf[lo]
+    return lo, ((u - cdf[lo]) / width if width > 0.0 else 0.5)
+
+
+@inline_kernel
+def _sample_env(lf, env, rows, cols, e, u1, u2):
+    """World direction drawn from environment light e and its solid-angle density."""
+    f = lf[e]
+    if f[0] == 0.0:
+        z = 1.0 - 2.0 * u1
+        r = math.sqrt(max(0.0, 1.0 - z * z))
+        phi = 2.0 * math.pi * u2
+        return r * math.cos(phi), r * math.sin(phi), z, 1.0 / (4.0 * math.pi)
+    h, w = env.shape[0], env.shape[1]
+    i, fu = _invert(rows, u1)
+    j, fv = _invert(cols[i], u2)
+    theta, phi = (i + fu) / h * math.pi, (j + fv) / w * 2.0 * math.pi
+    # inverse of _env_pixel: x = sin(theta) sin(phi), y = cos(theta), z = -sin(theta) cos(phi)
+    x, y, z = math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi)
+    # the frame is a rotation: world = frame^T local
+    dx = f[6] * x + f[9] * y + f[12] * z
+    dy = f[7] * x + f[10] * y + f[13] * z
+    dz = f[8] * x + f[11] * y + f[14] * z
+    return dx, dy, dz, env_pdf(lf, env, rows, cols, e, dx, dy, dz)
+
+
+# --- area lights ------------------------------------------------------------------------------
+
+@inline_kernel
+def emits_towards(f, nx, ny, nz, dx, dy, dz):
+    """Whether an area light with outward (geometric) normal n emits along direction d."""
+    c = nx * dx + ny * dy + nz * dz
+    sides = int(f[1])
+    return (c > 0.0 and (sides & FRONT) != 0) or (c < 0.0 and (sides & BACK) != 0)
+
+
+@inline_kernel
+def area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz):
+    """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point q (on
+    the light, outward normal n)."""
+    i = int(f[0])
+    dx, dy, dz = qx - px, qy - py, qz - pz
+    d2 = dx * dx + dy * dy + dz * dz
+    if prim[i, 0] == SPHERE:
+        s = sph[prim[i, 1]]
+        cx, cy, cz, r = s[0] - px, s[1] - py, s[2] - pz, s[3]
+        dc2 = cx * cx + cy * cy + cz * cz
+        if dc2 > r * r * (1.0 + 1e-9):
+            # uniform over the cone of the sphere's silhouette (PBR 4th ed. 6.2.4)
+            cos_max = math.sqrt(max(0.0, 1.0 - r * r / dc2))
+            return 1.0 / (2.0 * math.pi * (1.0 - cos_max))
+    cos_l = abs(nx * dx + ny * dy + nz * dz) / math.sqrt(d2)
+    if cos_l <= 0.0:
+        return 0.0
+    return d2 / (f[2] * cos_l)  # uniform by area: dA = r^2 / cos d(omega)
+
+
+@inline_kernel
+def _sample_area(prim, sph, quad, f, px, py, pz, u1, u2):
+    """A point on area light f seen from p: ``(qx, qy, qz, nx, ny, nz)``."""
+    i = int(f[0])
+    j = prim[i, 1]
+    if prim[i, 0] == SPHERE:
+        s = sph[j]
+        cx, cy, cz, r = s[0], s[1], s[2], s[3]
+        wx, wy, wz = cx - px, cy - py, cz - pz
+        dc2 = wx * wx + wy * wy + wz * wz
+        if dc2 > r * r * (1.0 + 1e-9):
+            # a direction in the silhouette cone, then the nearer point of the sphere along it
+            dc = math.sqrt(dc2)
+            cos_max = math.sqrt(max(0.0, 1.0 - r * r / dc2))
+            ct = 1.0 - u1 * (1.0 - cos_max)
+            st = math.sqrt(max(0.0, 1.0 - ct * ct))
+            phi = 2.0 * math.pi * u2
+            dx, dy, dz = sampling.from_axis_frame(st * math.cos(phi), st * math.sin(phi), ct,
+                                                  wx / dc, wy / dc, wz / dc)
+            b = dx * wx + dy * wy + dz * wz
+            t = b - math.sqrt(max(0.0, b * b - dc2 + r * r))
+            qx, qy, qz = px + t * dx, py + t * dy, pz + t * dz
+        else:
+            z = 1.0 - 2.0 * u1
+            rr = math.sqrt(max(0.0, 1.0 - z * z))
+            phi = 2.0 * math.pi * u2
+            qx, qy, qz = cx + r * rr * math.cos(phi), cy + r * rr * math.sin(phi), cz + r * z
+        return qx, qy, qz, (qx - cx) / r, (qy - cy) / r, (qz - cz) / r
+    g = quad[j]
+    return (g[0, 0] + u1 * g[1, 0] + u2 * g[2, 0], g[0, 1] + u1 * g[1, 1] + u2 * g[2, 1],
+            g[0, 2] + u1 * g[1, 2] + u2 * g[2, 2], g[3, 0], g[3, 1], g[3, 2])
+
+
+# --- next-event estimation ----------------------------------------------------------------------
+
+@inline_kernel
+def pick_light(pmf, u):
+    """A light index drawn with probabilities ``pmf``, and ``u`` rescaled within its share."""
+    acc = 0.0
+    n = pmf.shape[0]
+    for l in range(n):
+        if u < acc + pmf[l] or l == n - 1:
+            return l, min(max((u - acc) / pmf[l], 0.0), 0.9999999999999999)
+        acc += pmf[l]
+    return n - 1, u
+
+
+@inline_kernel
+def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, pz, u1, u2, li):
+    """Incident light at p from light l: returns ``(dx, dy, dz, dist, pdf)`` with d the unit
+    direction towards the light, dist the shadow-ray length (inf for directional and
+    environment light) and pdf its solid-angle density (inf for delta lights, 0 for none), and
+    writes the incident radiance (or, for delta lights, irradiance normal to d) into li[:3]."""
+    t = ltype[l]
+    f = lf[l]
+    if t == POINT or t == SPOT or t == GONIO:
+        dx, dy, dz = f[0] - px, f[1] - py, f[2] - pz
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        dx, dy, dz = dx / r, dy / r, dz / r
+        s = attenuation(f, r)  # E = I cos / (a r^2 + b r + c); the cosine is the receiver's
+        if t == SPOT:
+            ca = -(dx * f[9] + dy * f[10] + dz * f[11])
+            # the spotlight of classic course notes: I cos^n(angle to the axis) inside the cone
+            s = s * ca ** f[13] if ca >= f[12] else 0.0
+        elif t == GONIO:
+            s *= gonio_intensity(gonio, f, -dx, -dy, -dz)
+        for c in range(3):
+            li[c] = f[3 + c] * s
+        return dx, dy, dz, r, math.inf
+    if t == DIRECTIONAL:
+        for c in range(3):
+            li[c] = f[3 + c]
+        return -f[0], -f[1], -f[2], math.inf, math.inf
+    if t == AREA:
+        qx, qy, qz, nx, ny, nz = _sample_area(prim, sph, quad, f, px, py, pz, u1, u2)
+        dx, dy, dz = qx - px, qy - py, qz - pz
+        r = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if r <= 0.0:
+            return 0.0, 0.0, 1.0, 0.0, 0.0
+        dx, dy, dz = dx / r, dy / r, dz / r
+        if not emits_towards(f, nx, ny, nz, -dx, -dy, -dz):
+            return dx, dy, dz, r, 0.0
+        for c in range(3):
+            li[c] = f[3 + c]
+        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz)
+    dx, dy, dz, pdf = _sample_env(lf, env, rows, cols, l, u1, u2)
+    for c in range(3):
+        li[c] = env_radiance(lf, env, l, dx, dy, dz, c)
+    return dx, dy, dz, math.inf, pdf

@@ -1,0 +1,628 @@
+"""Scenes for the path tracer: camera, shapes, materials, lights, and their compiled arrays.
+
+A :class:`Scene` holds plain Python objects; :meth:`Scene.compile` validates them and packs
+them into the flat arrays the numba kernels read (see ``_intersect``, ``_materials`` and
+``_lights`` for the layouts). Positions are in scene units (metres, say), colours are RGB,
+radiance in W/(m^2 sr), intensity in W/sr, irradiance in W/m^2.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from . import _intersect as X
+from . import _lights as L
+from . import _materials as M
+
+__all__ = ["Camera", "Sphere", "Quad", "Mesh", "box", "rectangle", "Material", "PointLight",
+           "SpotLight", "DirectionalLight", "GoniometricLight", "Environment", "Scene"]
+
+
+def _vec(x, name, n=3):
+    a = np.asarray(x, dtype=float).reshape(-1)
+    if a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise InputError(f"{name}: expected {n} finite numbers, got {x!r}")
+    return a
+
+
+def _colour(x, name):
+    """An RGB triple from one number (grey) or three, non-negative and finite."""
+    a = np.asarray(x, dtype=float).reshape(-1)
+    if a.size == 1:
+        a = np.repeat(a, 3)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+        raise InputError(f"{name}: expected one or three non-negative numbers, got {x!r}")
+    return a
+
+
+def _unit(x, name):
+    a = _vec(x, name)
+    n = np.linalg.norm(a)
+    if n == 0:
+        raise InputError(f"{name}: expected a nonzero direction, got {x!r}")
+    return a / n
+
+
+# --- camera -----------------------------------------------------------------------------------
+
+@dataclass
+class Camera:
+    """Pinhole camera looking from ``origin`` at ``target``; ``fov`` in degrees along
+    ``fov_axis`` ("x", "y", "smaller" or "larger", as Mitsuba 3's perspective sensor)."""
+
+    origin: tuple = (0.0, 0.0, 4.0)
+    target: tuple = (0.0, 0.0, 0.0)
+    up: tuple = (0.0, 1.0, 0.0)
+    fov: float = 40.0
+    fov_axis: str = "x"
+
+    def pack(self, width, height):
+        o = _vec(self.origin, "camera origin")
+        fwd = _unit(np.subtract(self.target, o), "camera target - origin")
+        right = np.cross(fwd, _unit(self.up, "camera up"))
+        if np.linalg.norm(right) < 1e-9:
+            raise InputError("camera: up is parallel to the viewing direction")
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        if not 0.0 < float(self.fov) < 180.0:
+            raise InputError(f"camera fov: expected degrees in (0, 180), got {self.fov}")
+        axis = {"smaller": "x" if width <= height else "y",
+                "larger": "x" if width >= height else "y"}.get(self.fov_axis, self.fov_axis)
+        if axis not in ("x", "y"):
+            raise InputError(f"camera fov_axis: expected x, y, smaller or larger, got "
+                             f"{self.fov_axis!r}")
+        t = math.tan(math.radians(float(self.fov)) / 2.0)
+        tx, ty = (t, t * height / width) if axis == "x" else (t * width / height, t)
+        return np.concatenate([o, fwd, tx * right, ty * up, [0.0, 0.0, 0.0, 0.0]])
+
+
+# --- materials --------------------------------------------------------------------------------
+
+@dataclass
+class Material:
+    """A BRDF for the renderer: a model, spec, fit report path or measured table, with optional
+    textures ``{"lobe.param": image}`` (a path to an EXR or PNG, or an array (h, w[, c]));
+    per-channel parameters read the image's channels, scalar ones its first channel. Values
+    are clipped to the parameter's declared bounds."""
+
+    brdf: object
+    textures: dict = field(default_factory=dict)
+
+    def resolve(self):
+        """The model or table behind ``brdf``."""
+        from ..models.base import Model
+        from ..table import Table
+        b = self.brdf
+        if isinstance(b, (Model, Table)):
+            return b
+        if isinstance(b, str):
+            from ..spec import parse
+            if b.lower().endswith(".json"):
+                from ..fitting import load_report
+                return load_report(b).model
+            import os
+            if os.path.exists(b):
+                from ..io import read
+                return read(b)
+            return parse(b)
+        raise InputError(f"material: expected a model, spec, report or table, got {b!r}")
+
+
+def _lobe_slots(lobe, decl, nch):
+    """Positions of parameter ``decl`` in a lobe's packed block (one per channel), found by
+    packing it with probe values."""
+    base = np.asarray(lobe.pack(nch))
+    lo, hi = decl.bounds
+    lo = lo if math.isfinite(lo) else -1.0
+    hi = hi if math.isfinite(hi) else lo + 2.0
+    probes = lo + (hi - lo) * (0.1234567 + 0.1 * np.arange(nch if decl.per_channel else 1))
+    moved = np.asarray(lobe.replace(**{decl.name: probes if decl.per_channel else probes[0]})
+                       .pack(nch))
+    return [int(np.flatnonzero((moved != base) & (moved == p))[0]) for p in probes]
+
+
+# --- shapes -----------------------------------------------------------------------------------
+
+@dataclass
+class Sphere:
+    centre: tuple
+    radius: float
+    material: object = None
+    emission: object = None
+    sides: str = "front"
+
+
+@dataclass
+class Quad:
+    """The parallelogram ``corner + a edge1 + b edge2`` (a, b in [0, 1]); its front faces
+    edge1 x edge2; texture coordinates (a, b)."""
+
+    corner: tuple
+    edge1: tuple
+    edge2: tuple
+    material: object = None
+    emission: object = None
+    sides: str = "front"
+
+
+@dataclass
+class Mesh:
+    """Triangles ``faces (m, 3)`` into ``vertices (n, 3)``, optional per-vertex ``normals`` and
+    ``uv``."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    material: object = None
+    normals: np.ndarray = None
+    uv: np.ndarray = None
+
+    @classmethod
+    def read(cls, path, material=None, transform=None):
+        """A PLY, OBJ, STL or VTK mesh through pyvista (triangulated); ``transform`` a 4 x 4
+        matrix applied to it."""
+        import os
+        import pyvista as pv
+        if not os.path.exists(path):
+            raise InputError(f"{path}: no such mesh file")
+        try:
+            mesh = pv.read(path).extract_surface().triangulate()
+        except Exception as e:  # pyvista raises various types for unreadable files
+            raise InputError(f"{path}: cannot read a mesh ({e})") from None
+        if mesh.n_cells == 0:
+            raise InputError(f"{path}: holds no triangles")
+        if transform is not None:
+            mesh = mesh.transform(np.asarray(transform, dtype=float), inplace=False)
+        faces = mesh.faces.reshape(-1, 4)[:, 1:]
+        uv = mesh.active_texture_coordinates
+        normals = mesh.point_data.get("Normals")
+        return cls(np.asarray(mesh.points, float), faces, material,
+                   None if normals is None else np.asarray(normals, float),
+                   None if uv is None else np.asarray(uv, float))
+
+
+def rectangle(to_world, material=None, emission=None, sides="front"):
+    """Mitsuba 3's ``rectangle``: the square [-1, 1]^2 at z = 0 facing +z, mapped by the 4 x 4
+    matrix ``to_world``."""
+    T = np.asarray(to_world, dtype=float)
+    p = lambda x, y: T[:3, :3] @ [x, y, 0.0] + T[:3, 3]  # noqa: E731
+    c = p(-1, -1)
+    return Quad(c, p(1, -1) - c, p(-1, 1) - c, material, emission, sides)
+
+
+def box(to_world, material=None):
+    """Mitsuba 3's ``cube``: the six outward-facing faces of [-1, 1]^3 mapped by ``to_world``."""
+    T = np.asarray(to_world, dtype=float)
+    p = lambda v: T[:3, :3] @ v + T[:3, 3]  # noqa: E731
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            a, b = (axis + 1) % 3, (axis + 2) % 3
+            if sign < 0:
+                a, b = b, a  # keep edge1 x edge2 pointing outwards
+            c = np.zeros(3)
+            c[axis] = sign
+            c[a] = c[b] = -1.0
+            e1 = np.zeros(3)
+            e1[a] = 2.0
+            e2 = np.zeros(3)
+            e2[b] = 2.0
+            o = p(c)
+            faces.append(Quad(o, p(c + e1) - o, p(c + e2) - o, material))
+    return faces
+
+
+# --- lights -----------------------------------------------------------------------------------
+
+@dataclass
+class PointLight:
+    """Isotropic point light of intensity I (W/sr); irradiance I cos / (a r^2 + b r + c)."""
+
+    position: tuple
+    intensity: object = 1.0
+    attenuation: tuple = (1.0, 0.0, 0.0)
+
+
+@dataclass
+class SpotLight:
+    """Point light emitting I cos^n(angle to ``direction``) inside a cone of half-angle
+    ``cutoff`` degrees (n = ``exponent``, 2 by default)."""
+
+    position: tuple
+    direction: tuple
+    intensity: object = 1.0
+    cutoff: float = 30.0
+    exponent: float = 2.0
+    attenuation: tuple = (1.0, 0.0, 0.0)
+
+
+@dataclass
+class DirectionalLight:
+    """Parallel light travelling along ``direction`` with irradiance E (W/m^2) normal to it."""
+
+    direction: tuple
+    irradiance: object = 1.0
+
+
+@dataclass
+class GoniometricLight:
+    """Point light whose intensity is ``intensity`` times a table over direction: ``table``
+    ``(len(theta), len(phi))`` at ``theta`` degrees from ``axis`` (0 to 180) and ``phi``
+    degrees about it from ``phi_axis``; read one from an IES file with :meth:`from_ies`."""
+
+    position: tuple
+    table: np.ndarray
+    theta: np.ndarray
+    phi: np.ndarray
+    intensity: object = 1.0
+    axis: tuple = (0.0, -1.0, 0.0)
+    phi_axis: tuple = (1.0, 0.0, 0.0)
+    attenuation: tuple = (1.0, 0.0, 0.0)
+
+    @classmethod
+    def from_ies(cls, path, position, **options):
+        from .ies import read_ies
+        table, theta, phi = read_ies(path)
+        return cls(position, table, theta, phi, **options)
+
+    def resampled(self):
+        """The table on the kernel's regular (theta, phi) grid, bilinear and periodic in phi."""
+        th = np.asarray(self.theta, float)
+        ph = np.asarray(self.phi, float)
+        tab = np.asarray(self.table, float)
+        if tab.shape != (th.size, ph.size) or np.any(~np.isfinite(tab)) or np.any(tab < 0):
+            raise InputError("goniometric table: expected non-negative finite values shaped "
+                             "(len(theta), len(phi))")
+        if np.any(np.diff(th) <= 0) or (ph.size > 1 and np.any(np.diff(ph) <= 0)):
+            raise InputError("goniometric table: theta and phi must increase")
+        gt = np.linspace(0.0, 180.0, L.GONIO_THETA)
+        gp = np.linspace(0.0, 360.0, L.GONIO_PHI)
+        # along theta: linear, held constant past the table's ends
+        by_theta = np.stack([np.interp(gt, th, tab[:, j]) for j in range(ph.size)], axis=1)
+        if ph.size == 1:
+            return np.repeat(by_theta, L.GONIO_PHI, axis=1)
+        period = np.concatenate([ph, [ph[0] + 360.0]])
+        vals = np.concatenate([by_theta, by_theta[:, :1]], axis=1)
+        return np.stack([np.interp(gp, period, row, period=360.0) for row in vals], axis=0)
+
+
+@dataclass
+class Environment:
+    """Light from infinitely far away: constant ``radiance``, or ``radiance`` times an
+    equirectangular map (an EXR/PNG path or an array (h, w, 3)) in Mitsuba 3's envmap layout
+    with its +y axis along ``up``."""
+
+    radiance: object = 1.0
+    map: object = None
+    up: tuple = (0.0, 1.0, 0.0)
+
+
+# --- the scene --------------------------------------------------------------------------------
+
+_SIDES = {"front": L.FRONT, "back": L.BACK, "both": L.FRONT | L.BACK}
+
+
+class Compiled:
+    """The kernels' view of a scene: the ``geo`` arrays (prim, sph, quad, tri, tri_n, tri_uv,
+    BVH boxes, children, order), ``mats`` (see ``_materials``) and ``lights`` (see
+    ``_lights``)."""
+
+    def __init__(self, geo, mats, lights, bounds):
+        self.geo, self.mats, self.lights, self.bounds = geo, mats, lights, bounds
+
+
+@dataclass
+class Scene:
+    """Camera, shapes, lights and an optional environment.
+
+    Shapes take a ``material`` (a :class:`Material`, model, spec, report path or table; None
+    for a black surface) and an optional ``emission`` (radiance, making the shape an area
+    light; quads and spheres only).
+    """
+
+    camera: Camera = field(default_factory=Camera)
+    shapes: list = field(default_factory=list)
+    lights: list = field(default_factory=list)
+    environment: Environment = None
+
+    # -- compilation -----------------------------------------------------------------------------
+    def compile(self):
+        mats = _MaterialTable()
+        prims, emitters = [], []
+        sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
+        for k, s in enumerate(self.shapes):
+            mat = mats.index(s.material)
+            if isinstance(s, Sphere):
+                r = float(s.radius)
+                if not (r > 0 and math.isfinite(r)):
+                    raise InputError(f"shape {k} (sphere): radius must be positive, got {s.radius}")
+                sph.append(np.concatenate([_vec(s.centre, f"shape {k} centre"), [r]]))
+                prims.append((X.SPHERE, len(sph) - 1, mat, k))
+            elif isinstance(s, Quad):
+                quad.append(_quad_row(s, k))
+                prims.append((X.QUAD, len(quad) - 1, mat, k))
+            elif isinstance(s, Mesh):
+                for t in _mesh_rows(s, k, tri, tri_n, tri_uv):
+                    prims.append((X.TRIANGLE, t, mat, k))
+            else:
+                raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got {type(s).__name__}")
+        if not prims:
+            raise InputError("scene: no shapes")
+        prim = np.full((len(prims), 4), -1, dtype=np.int64)
+        prim[:, :3] = [p[:3] for p in prims]
+        sph = np.array(sph, float).reshape(-1, 4)
+        quad = np.array(quad, float).reshape(-1, 6, 3)
+        tri = np.array(tri, float).reshape(-1, 3, 3)
+        tri_n = np.array(tri_n, float).reshape(-1, 3, 3)
+        tri_uv = np.array(tri_uv, float).reshape(-1, 3, 2)
+        lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
+        scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
+        pad = 1e-9 * (1.0 + scale)
+        nodes, child, order = X.build_bvh(lo - pad, hi + pad)
+        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, order)
+        # area lights from emissive shapes
+        for i, (kind, j, _, k) in enumerate(prims):
+            s = self.shapes[k]
+            if s.emission is None:
+                continue
+            if kind == X.TRIANGLE:
+                raise InputError(f"shape {k}: emission is for quads and spheres")
+            if s.sides not in _SIDES:
+                raise InputError(f"shape {k}: sides must be front, back or both, got {s.sides!r}")
+            area = (4 * math.pi * sph[j, 3] ** 2 if kind == X.SPHERE
+                    else float(np.linalg.norm(np.cross(quad[j, 1], quad[j, 2]))))
+            f = np.zeros(16)
+            f[0], f[1], f[2] = i, _SIDES[s.sides], area
+            f[3:6] = _colour(s.emission, f"shape {k} emission")
+            prim[i, 3] = len(emitters)
+            emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
+        lights = _pack_lights(self, emitters, scale)
+        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)))
+
+
+def _quad_row(s, k):
+    c, e1, e2 = (_vec(s.corner, f"shape {k} corner"), _vec(s.edge1, f"shape {k} edge1"),
+                 _vec(s.edge2, f"shape {k} edge2"))
+    n = np.cross(e1, e2)
+    area = np.linalg.norm(n)
+    if area == 0:
+        raise InputError(f"shape {k} (quad): edges are parallel")
+    n = n / area
+    d1 = np.cross(e2, n)
+    d2 = np.cross(n, e1)
+    return np.stack([c, e1, e2, n, d1 / (e1 @ d1), d2 / (e2 @ d2)])
+
+
+def _mesh_rows(s, k, tri, tri_n, tri_uv):
+    v = np.asarray(s.vertices, float)
+    f = np.asarray(s.faces, dtype=np.int64)
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+        raise InputError(f"shape {k} (mesh): expected vertices (n, 3) and faces (m, 3)")
+    if f.size and (f.min() < 0 or f.max() >= len(v)):
+        raise InputError(f"shape {k} (mesh): face indices outside 0..{len(v) - 1}")
+    tris = v[f]
+    e = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    keep = np.linalg.norm(e, axis=1) > 0  # degenerate triangles have no normal
+    start = len(tri)
+    tri.extend(tris[keep])
+    nrm = np.zeros_like(tris) if s.normals is None else np.asarray(s.normals, float)[f]
+    tri_n.extend(nrm[keep])
+    uv = np.zeros(tris.shape[:2] + (2,)) if s.uv is None else np.asarray(s.uv, float)[f]
+    tri_uv.extend(uv[keep])
+    return range(start, len(tri))
+
+
+def _bounds(ptype, pidx, sph, quad, tri):
+    lo = np.empty((len(ptype), 3))
+    hi = np.empty((len(ptype), 3))
+    for kind, rows in ((X.SPHERE, sph), (X.QUAD, quad), (X.TRIANGLE, tri)):
+        sel = ptype == kind
+        if not sel.any():
+            continue
+        r = rows[pidx[sel]]
+        if kind == X.SPHERE:
+            lo[sel], hi[sel] = r[:, :3] - r[:, 3:], r[:, :3] + r[:, 3:]
+        elif kind == X.QUAD:
+            corners = np.stack([r[:, 0], r[:, 0] + r[:, 1], r[:, 0] + r[:, 2],
+                                r[:, 0] + r[:, 1] + r[:, 2]], axis=1)
+            lo[sel], hi[sel] = corners.min(axis=1), corners.max(axis=1)
+        else:
+            lo[sel], hi[sel] = r.min(axis=1), r.max(axis=1)
+    return lo, hi
+
+
+def _pack_lights(scene, emitters, scale):
+    rows, gonio = list(emitters), []
+    for k, light in enumerate(scene.lights):
+        f = np.zeros(16)
+        where = f"light {k} ({type(light).__name__})"
+        if isinstance(light, (PointLight, SpotLight, GoniometricLight)):
+            f[0:3] = _vec(light.position, where + " position")
+            f[3:6] = _colour(light.intensity, where + " intensity")
+            att = _vec(light.attenuation, where + " attenuation")
+            if np.any(att < 0) or not att.any():
+                raise InputError(f"{where}: attenuation (a, b, c) must be non-negative, not all 0")
+            f[6:9] = att
+            power = 4 * math.pi * f[3:6].mean()
+            kind = L.POINT
+            if isinstance(light, SpotLight):
+                kind = L.SPOT
+                f[9:12] = _unit(light.direction, where + " direction")
+                if not 0 < float(light.cutoff) <= 180:
+                    raise InputError(f"{where}: cutoff must be in (0, 180] degrees")
+                if not float(light.exponent) >= 0:
+                    raise InputError(f"{where}: exponent must be >= 0")
+                f[12] = math.cos(math.radians(float(light.cutoff)))
+                f[13] = float(light.exponent)
+            elif isinstance(light, GoniometricLight):
+                kind = L.GONIO
+                a = _unit(light.axis, where + " axis")
+                b = np.asarray(light.phi_axis, float)
+                b = b - (b @ a) * a
+                if np.linalg.norm(b) < 1e-9:
+                    raise InputError(f"{where}: phi_axis must not be parallel to axis")
+                f[9:12], f[12:15], f[15] = a, b / np.linalg.norm(b), len(gonio)
+                gonio.append(light.resampled())
+                power *= float(np.mean(gonio[-1]))
+            rows.append((kind, f, power))
+        elif isinstance(light, DirectionalLight):
+            f[0:3] = _unit(light.direction, where + " direction")
+            f[3:6] = _colour(light.irradiance, where + " irradiance")
+            rows.append((L.DIRECTIONAL, f, math.pi * scale * scale * f[3:6].mean()))
+        else:
+            raise InputError(f"{where}: not a light")
+    env, env_rows, env_cols = np.zeros((1, 1, 3)), np.zeros(2), np.zeros((1, 2))
+    env_light = -1
+    if scene.environment is not None:
+        e = scene.environment
+        f = np.zeros(16)
+        f[3:6] = _colour(e.radiance, "environment radiance")
+        mean = f[3:6].mean()
+        if e.map is not None:
+            from .image import read_image
+            env = read_image(e.map, "environment map", channels=3)
+            env_rows, env_cols = _env_distribution(env)
+            f[6:15] = _env_frame(e.up).ravel()
+            f[0] = 1.0
+            mean *= float(env.mean())
+        env_light = len(rows)
+        rows.append((L.ENV, f, 4 * math.pi * math.pi * scale * scale * mean))
+    ltype = np.array([r[0] for r in rows], dtype=np.int64)
+    lf = np.array([r[1] for r in rows], float).reshape(-1, 16)
+    power = np.array([max(r[2], 0.0) for r in rows], float)
+    # light selection in proportion to a power estimate, but never below a tenth of uniform,
+    # so that a light the estimate undervalues (a spot, a small map) is still sampled
+    pmf = power / power.sum() if power.sum() > 0 else np.full(len(rows), 1.0 / max(len(rows), 1))
+    if len(rows):
+        pmf = 0.9 * pmf + 0.1 / len(rows)
+        pmf /= pmf.sum()
+    gonio = (np.array(gonio, float) if gonio
+             else np.zeros((1, L.GONIO_THETA, L.GONIO_PHI)))
+    return (ltype, lf, pmf, gonio, env, env_rows, env_cols, env_light)
+
+
+def _env_frame(up):
+    """Rotation taking world directions into the map's frame, whose +y is ``up``."""
+    y = _unit(up, "environment up")
+    x = np.cross(y, [0.0, 0.0, 1.0]) if abs(y[2]) < 0.9 else np.cross(y, [1.0, 0.0, 0.0])
+    if abs(y[1]) > 0.999999:
+        x = np.array([1.0, 0.0, 0.0]) * np.sign(y[1])
+    x /= np.linalg.norm(x)
+    z = np.cross(x, y)
+    return np.stack([x, y, z])
+
+
+def _env_distribution(env):
+    """Row marginal and per-row conditional CDFs of luminance times sin(theta) over the map's
+    pixels (PBR 3rd ed. 14.2.4)."""
+    h, w, _ = env.shape
+    lum = env @ np.array([0.2126, 0.7152, 0.0722])
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    p = np.maximum(lum, 0.0) * np.sin(theta)[:, None]
+    if p.sum() <= 0:
+        p = np.sin(theta)[:, None] * np.ones((1, w))
+    row = p.sum(axis=1)
+    rows = np.concatenate([[0.0], np.cumsum(row) / row.sum()])
+    safe = np.where(row > 0, row, 1.0)[:, None]
+    cols = np.concatenate([np.zeros((h, 1)), np.cumsum(p, axis=1) / safe], axis=1)
+    cols[row <= 0, 1:] = np.arange(1, w + 1) / w
+    rows[-1] = 1.0
+    cols[:, -1] = 1.0
+    return rows, cols
+
+
+class _MaterialTable:
+    """Materials met while compiling shapes, deduplicated, packed into the ``mats`` tuple."""
+
+    def __init__(self):
+        self.items, self.keys = [], {}
+
+    def index(self, material):
+        if material is None:
+            return -1
+        key = id(material) if not isinstance(material, str) else material
+        if key not in self.keys:
+            self.keys[key] = len(self.items)
+            self.items.append(material if isinstance(material, Material) else Material(material))
+        return self.keys[key]
+
+    def pack(self):
+        from ..io.merl import MerlTable
+        from ..models.base import Model
+        rows, kinds, offs, params = [], [], [], []
+        grids, filled, tables, bind, tex, texmeta = [], [], [], [], [], []
+        for i, mat in enumerate(self.items):
+            b = mat.resolve()
+            row = np.zeros(11, dtype=np.int64)
+            row[[M.K0, M.O0, M.P0, M.B0]] = len(kinds), len(offs), len(params), len(bind)
+            row[M.GRID] = -1
+            if isinstance(b, Model):
+                if b.channels not in (1, 3):
+                    raise InputError(f"material {i}: the renderer works in RGB; the model has "
+                                     f"{b.channels} channels")
+                c = b.compile(3)
+                row[M.TYPE] = M.MODEL
+                if not all(lobe.reciprocal for lobe in b.lobes):
+                    row[M.FLAGS] = M.NONRECIPROCAL
+                _bind_textures(mat, b, c, i, bind, tex, texmeta)
+                kinds.extend(c.kinds)
+                offs.extend(c.offsets)
+                params.extend(c.params)
+            else:
+                if mat.textures:
+                    raise InputError(f"material {i}: textures apply to model parameters, not to "
+                                     "measured tables")
+                if b.channels != 3:
+                    raise InputError(f"material {i}: the renderer works in RGB; the table has "
+                                     f"{b.channels} channels")
+                t = b if isinstance(b, MerlTable) else MerlTable.from_table(b)
+                row[M.TYPE] = M.MEASURED
+                row[M.GRID] = len(grids)
+                grids.append(np.asarray(t._grid, float))
+                filled.append(np.asarray(t._filled, float))
+                tables.append(M.tabulate(t))
+            row[[M.K1, M.O1, M.P1, M.B1]] = len(kinds), len(offs), len(params), len(bind)
+            rows.append(row)
+        grid_shape = (1, 1, 1, 3)  # a placeholder the kernels never read
+        return (np.array(rows, np.int64).reshape(-1, 11),
+                np.array(kinds, np.int64), np.array(offs, np.int64), np.array(params, float),
+                np.stack(grids) if grids else np.zeros((1,) + grid_shape),
+                np.stack(filled) if filled else np.zeros((1,) + grid_shape),
+                np.stack(tables) if tables else np.zeros((1, M.TAB_THETA_I,
+                                                          M.TAB_THETA * M.TAB_PHI + 1)),
+                np.array(bind, np.int64).reshape(-1, 4),
+                np.concatenate(tex) if tex else np.zeros(1),
+                np.array(texmeta, np.int64).reshape(-1, 4))
+
+
+def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):
+    """Append texture bindings of material i: (material, slot, texture, channel) rows."""
+    from ..models.base import Param
+    from .image import read_image
+    if not mat.textures:
+        return
+    names = model.lobe_names() if len(model.lobes) > 1 else [model.name]
+    for flat, image in mat.textures.items():
+        lobe_name, _, pname = str(flat).partition(".")
+        if lobe_name not in names or not pname:
+            raise InputError(f"material {i} texture {flat!r}: expected LOBE.PARAM with LOBE one "
+                             f"of {', '.join(names)}")
+        l = names.index(lobe_name)
+        lobe = model.lobes[l]
+        try:
+            decl = lobe.declaration(pname)
+        except Exception:
+            decl = None
+        if not isinstance(decl, Param):
+            numeric = [d.name for d in lobe.PARAMS if isinstance(d, Param)]
+            raise InputError(f"material {i} texture {flat!r}: not a numeric parameter of "
+                             f"{lobe.name}; one of {', '.join(numeric)}")
+        img = read_image(image, f"texture {flat}")
+        lo, hi = decl.bounds
+        img = np.clip(img, lo, hi)
+        h, w, nc = img.shape
+        texmeta.append((sum(t.size for t in tex), w, h, nc))
+        tex.append(img.ravel())
+        for ch, slot in enumerate(_lobe_slots(lobe, decl, 3)):
+            bind.append((i, compiled.offsets[l] + slot, len(texmeta) - 1, ch))

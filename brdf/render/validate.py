@@ -1,0 +1,54 @@
+"""Measured versus fitted: render a table and a model in the same scene and compare images."""
+
+import json
+from pathlib import Path
+
+from ..errors import OutputError
+
+__all__ = ["validate", "OUTPUTS"]
+
+#: Files :func:`validate` writes into its folder
+OUTPUTS = ("measured.exr", "fitted.exr", "measured.png", "fitted.png", "difference.png",
+           "flip.png", "metrics.json")
+
+
+def validate(data, fitted, outdir, scene="sphere", spp=64, size=(256, 256), seed=0,
+             force=False, **options):
+    """Render ``data`` (a measured table) and ``fitted`` (a model, spec or fit report) in the
+    same scene with the same seed, and write both images (EXR and PNG previews), a
+    false-colour difference (red: the fit is brighter) and the FLIP error map, and
+    ``metrics.json`` (RMSE, relative MSE, mean FLIP; fitted against measured) into ``outdir``.
+
+    ``scene`` names a built-in scene or a scene file whose shapes use ``"@material"``.
+    Returns the metrics dictionary.
+    """
+    from . import builtin, load, render
+    from .image import false_colour, metrics, tonemap, write_png
+    from .scene import Material
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a folder")
+    if not force:
+        for name in OUTPUTS:
+            if (out / name).exists():
+                raise OutputError(f"{out / name}: exists; pass --force (force=True) to replace it")
+    out.mkdir(parents=True, exist_ok=True)
+    fitted_model = Material(fitted).resolve()
+    images = {}
+    for name, material in (("measured", data), ("fitted", fitted_model)):
+        s = load(scene, material) if str(scene).lower().endswith((".json", ".toml")) else \
+            builtin(scene, material)
+        images[name] = render(s, spp=spp, size=size, seed=seed, **options)
+        images[name].save(out / f"{name}.exr", force=True)
+        write_png(out / f"{name}.png", tonemap(images[name].image), force=True)
+    test, ref = images["fitted"].image, images["measured"].image
+    result, flip_map = metrics(test, ref)
+    write_png(out / "difference.png", false_colour(test - ref), force=True)
+    write_png(out / "flip.png", flip_map, force=True)
+    result.update({"scene": str(scene), "spp": int(spp), "seed": int(images["fitted"].seed),
+                   "size": list(ref.shape[1::-1]), "model": str(fitted_model),
+                   "seconds": {k: v.seconds for k, v in images.items()}})
+    from ..io import atomic_output
+    with atomic_output(out / "metrics.json", force=True) as tmp:
+        tmp.write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+    return result
