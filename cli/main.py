@@ -10,6 +10,7 @@ import sys
 import textwrap
 
 from . import arguments, commands
+from . import viz as viz_commands
 from .output import Output
 
 PROG = "brdf-fit"
@@ -161,6 +162,7 @@ def build_parser():
     _fit_parser(sub)
     _compare_parser(sub)
     _batch_parser(sub)
+    viz_commands.add_parsers(sub, _subcommand)
     return parser
 
 
