@@ -35,6 +35,12 @@ CYCLE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e37
 CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
 
 
+def _grey_gaps(name):
+    """Colour map ``name`` drawing missing pixels (NaN: below the horizon, no sample) grey."""
+    from matplotlib import colormaps
+    return colormaps[name].with_extremes(bad="#dddddd")
+
+
 def save_figure(fig, path, force=False, dpi=100):
     """Write ``fig`` as PNG at ``path`` atomically; an existing file only with ``force``."""
     from ..io import atomic_output
@@ -181,11 +187,11 @@ def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
         raise InputError(f"{subject}: no positive value on the slice phi_d = {phi_d:g}")
     fig = _figure(5.6, 4.6)
     ax = fig.add_subplot()
-    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap="magma",
+    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=_grey_gaps(
+        "magma"),
                       norm=LogNorm(vmin=np.nanmax(f) * 1e-4 if np.nanmin(f) < np.nanmax(f)
                                    * 1e-4 else np.nanmin(f), vmax=np.nanmax(f)),
                       interpolation="nearest")
-    image.cmap.set_bad("#dddddd")
     _merl_theta_h_axis(ax)
     ax.set_ylabel("theta_d [deg]")
     ax.set_title(_title(subject, channel, f"phi_d = {phi_d:g}°", width=60), fontsize=9)
@@ -284,8 +290,8 @@ def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=45):
     left.legend(fontsize=8)
     left.grid(alpha=0.3)
     image = right.imshow(mean, origin="lower", extent=(0, 1, 0, 90), aspect="auto",
-                         cmap="RdBu_r", vmin=-limit, vmax=limit, interpolation="nearest")
-    image.cmap.set_bad("#dddddd")
+                         cmap=_grey_gaps("RdBu_r"), vmin=-limit, vmax=limit,
+                         interpolation="nearest")
     _merl_theta_h_axis(right)
     right.set_ylabel("theta_d [deg]")
     right.set_title("mean over samples in each bin (blue: model too low)", fontsize=9)
