@@ -260,13 +260,16 @@ def _fit_samples(model, table, channel, cutoff):
         predicted[positive]
 
 
-def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=45):
+def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
     """How a model misses a table: model against measured values (log-log, with the 1:1 line)
     and a map of the mean log10(model / measured) over (theta_h, theta_d), every sample within
-    ``cutoff`` degrees binned, in the MERL layout of :func:`slice_plot`."""
+    ``cutoff`` degrees binned, in the MERL layout of :func:`slice_plot`. ``bins`` per axis
+    default to about two samples per bin on average, between 12 and 45."""
     wi, wo, measured, predicted = _fit_samples(model, table, channel, cutoff)
     log_ratio = np.log10(predicted / measured)
     theta_h, _, theta_d, _ = half_diff_from_directions(wi, wo)
+    if bins is None:
+        bins = int(np.clip(np.sqrt(len(measured) / 2), 12, 45))
     x = np.sqrt(np.clip(theta_h / (0.5 * math.pi), 0, 1))
     y = np.degrees(theta_d)
     edges = (np.linspace(0, 1, bins + 1), np.linspace(0, 90, bins + 1))
