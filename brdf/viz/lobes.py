@@ -180,7 +180,7 @@ def _add_lobe(plotter, subject, data, wi, options, peak, title, scalar_bar):
             r = _radius(channel_values(values, channel) * (wo[:, 2] if cosine else 1.0),
                         peak, log)
             plotter.add_mesh(pyvista.PolyData(wo * r[:, None]), color=COLOURS["samples"],
-                             point_size=6, render_points_as_spheres=True)
+                             point_size=3, render_points_as_spheres=True)
     _arrow(plotter, wi, 1.15, COLOURS["wi"], "wi")
     _arrow(plotter, reflect(wi), 1.15, COLOURS["mirror"], "mirror")
     _arrow(plotter, np.array([0.0, 0.0, 1.0]), 1.1, COLOURS["normal"], "n")

@@ -70,6 +70,11 @@ def _title(subject, channel, extra="", width=70):
 
 # -- in-plane polar plot ----------------------------------------------------------------------
 
+def _in_plane_samples(data, wi):
+    """The samples near incidence ``wi`` and in its plane (:func:`samples_near`)."""
+    return samples_near(data, wi, plane=True)
+
+
 def _log_radius(ax, peak):
     """Map values to radii in decades above a round floor at least :data:`POLAR_DECADES`
     below ``peak``; ticks read in 1/sr."""
@@ -119,10 +124,9 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
         curve = channel_values(subject.eval(np.broadcast_to(wi, wo.shape), wo), channel)
         points = None
         if data is not None:
-            swo, values = samples_near(data, wi)
-            keep, signed = in_plane(wi, swo)
-            points = (signed[keep], channel_values(values[keep], channel)
-                      * (swo[keep, 2] if cosine else 1.0))
+            swo, values = _in_plane_samples(data, wi)
+            points = (in_plane(wi, swo)[1], channel_values(values, channel)
+                      * (swo[:, 2] if cosine else 1.0))
         rows.append((float(t), curve * (wo[:, 2] if cosine else 1.0), points))
     peak = max([np.nanmax(c) for _, c, _ in rows] +
                [np.nanmax(p[1]) for _, _, p in rows if p is not None and len(p[1])])
@@ -347,11 +351,11 @@ def predictive_plot(posterior, data=None, *, theta_i=30.0, draws=100, seed=0, ch
     left.fill_between([], [], [], color="grey", alpha=0.15, label="95 % band")
     if data is not None:
         wi = incidence(theta_i)
-        wo, values = samples_near(data, wi)
-        keep, signed = in_plane(wi, wo)
+        wo, values = _in_plane_samples(data, wi)
+        signed = in_plane(wi, wo)[1]
         for c in channels:
             colour = CHANNEL_COLOURS.get(names[c], CYCLE[c % len(CYCLE)])
-            left.plot(signed[keep], values[keep, c], "o", ms=3, mfc="none", color=colour)
+            left.plot(signed, values[:, c], "o", ms=3, mfc="none", color=colour)
         left.plot([], [], "o", mfc="none", color="black", label="measured")
     left.set(yscale="log", xlim=(-90, 90), xlabel="theta_o [deg] (incident side < 0 < "
              "specular side)", ylabel=F_LABEL,

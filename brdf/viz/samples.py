@@ -9,13 +9,18 @@ from ..errors import InputError
 from ..geometry import spherical_to_cartesian
 
 __all__ = ["label", "channel_count", "in_plane_directions", "channel_values", "channel_label", "incidence", "samples_near", "in_plane",
-           "is_table", "MAX_POINTS", "TOLERANCE_DEG"]
+           "is_table", "thin", "MAX_POINTS", "TOLERANCE_DEG"]
 
 #: Largest number of measured samples drawn in one view (a MERL table has 1.46 million): more
-#: hide the surface under them without telling more.
-MAX_POINTS = 4000
+#: hide the lobe or the curves under them without telling more.
+MAX_POINTS = 600
 #: Samples whose incidence lies within this many degrees of the asked one count as taken there.
 TOLERANCE_DEG = 2.5
+#: Tighter tolerances tried first, so dense tables (MERL) show samples taken at the incidence
+#: itself rather than a band around it, where a sharp lobe has moved.
+TIGHTER_DEG = (0.25, 1.0)
+#: Enough samples to draw a lobe or a curve with.
+ENOUGH = 30
 
 
 def is_table(subject):
@@ -72,18 +77,23 @@ def incidence(theta_i_deg, phi_i_deg=0.0):
     return spherical_to_cartesian(math.radians(theta), math.radians(float(phi_i_deg)))
 
 
-def _thin(n, max_points):
-    """Evenly spread indices of at most ``max_points`` out of ``n`` (deterministic)."""
-    if n <= max_points:
+def thin(n, max_points):
+    """Evenly spread indices of at most ``max_points`` out of ``n`` (deterministic); all of
+    them when ``max_points`` is None."""
+    if max_points is None or n <= max_points:
         return np.arange(n)
     return np.unique(np.linspace(0, n - 1, max_points).round().astype(int))
 
 
-def samples_near(table, wi, tol_deg=TOLERANCE_DEG, max_points=MAX_POINTS):
-    """The table's measured samples taken within ``tol_deg`` of the incidence ``wi``.
+def samples_near(table, wi, tol_deg=None, max_points=MAX_POINTS, plane=False):
+    """The table's measured samples taken within ``tol_deg`` of the incidence ``wi``, at most
+    ``max_points`` of them (evenly spread; None: all).
 
     An isotropic table's samples at the same polar angle but another azimuth are rotated about
     the normal onto ``wi``'s azimuth (only the difference of azimuths matters for them).
+    By default the tolerance is the smallest of :data:`TIGHTER_DEG` and :data:`TOLERANCE_DEG`
+    that finds :data:`ENOUGH` samples; ``plane`` keeps only those within it of the plane of
+    incidence too.
 
     Returns
     -------
@@ -94,25 +104,33 @@ def samples_near(table, wi, tol_deg=TOLERANCE_DEG, max_points=MAX_POINTS):
     """
     swi, swo = np.asarray(table.wi, float), np.asarray(table.wo, float)
     values = np.asarray(table.values, float)
-    cos_tol = math.cos(math.radians(tol_deg))
     if table.isotropic:
-        # polar angles agree within tol <=> |theta_s - theta| <= tol
-        near = np.abs(np.arccos(np.clip(swi[:, 2], -1, 1)) - math.acos(min(wi[2], 1.0))) \
-            <= math.radians(tol_deg)
+        distance = np.abs(np.arccos(np.clip(swi[:, 2], -1, 1)) - math.acos(min(wi[2], 1.0)))
     else:
-        near = swi @ wi >= cos_tol
-    near &= np.isfinite(values).all(axis=1) & (swo[:, 2] > 0.0)
-    rows = np.nonzero(near)[0]
-    rows = rows[_thin(len(rows), max_points)]
-    wo = swo[rows]
-    if table.isotropic:
-        turn = math.atan2(wi[1], wi[0]) - np.arctan2(swi[rows, 1], swi[rows, 0])
-        # the azimuth is undefined at normal incidence: nothing to turn
-        turn = np.where(np.hypot(swi[rows, 0], swi[rows, 1]) < 1e-9, 0.0, turn)
-        c, s = np.cos(turn), np.sin(turn)
-        wo = np.stack([c * wo[:, 0] - s * wo[:, 1], s * wo[:, 0] + c * wo[:, 1], wo[:, 2]],
-                      axis=-1)
-    return wo, values[rows]
+        distance = np.arccos(np.clip(swi @ wi, -1, 1))
+    usable = np.isfinite(values).all(axis=1) & (swo[:, 2] > 0.0)
+    for tol in ([tol_deg] if tol_deg is not None else [*TIGHTER_DEG, TOLERANCE_DEG]):
+        rows = np.nonzero(usable & (distance <= math.radians(tol)))[0]
+        wo = _turned(table, swi[rows], swo[rows], wi)
+        if plane:
+            keep = in_plane(wi, wo, tol)[0]
+            rows, wo = rows[keep], wo[keep]
+        if len(rows) >= ENOUGH:
+            break
+    pick = thin(len(rows), max_points)
+    return wo[pick], values[rows[pick]]
+
+
+def _turned(table, swi, wo, wi):
+    """``wo`` turned about the normal by the azimuth from ``swi`` to ``wi`` (isotropic)."""
+    if not table.isotropic:
+        return wo
+    turn = math.atan2(wi[1], wi[0]) - np.arctan2(swi[:, 1], swi[:, 0])
+    # the azimuth is undefined at normal incidence: nothing to turn
+    turn = np.where(np.hypot(swi[:, 0], swi[:, 1]) < 1e-9, 0.0, turn)
+    c, s = np.cos(turn), np.sin(turn)
+    return np.stack([c * wo[:, 0] - s * wo[:, 1], s * wo[:, 0] + c * wo[:, 1], wo[:, 2]],
+                    axis=-1)
 
 
 def in_plane(wi, wo, tol_deg=TOLERANCE_DEG):

@@ -159,3 +159,17 @@ def test_headless_without_egl_says_which_packages_to_install(monkeypatch, tmp_pa
                                         "libgl1-mesa-dri"):
         plot_lobes(brdf.parse("lambert"), [30.0], path=tmp_path / "x.png")
     assert not os.listdir(tmp_path)
+
+
+def test_dense_tables_show_the_samples_taken_closest_to_the_incidence():
+    from brdf.viz.samples import ENOUGH
+    model = brdf.parse("lambert(albedo=0.3) + ggx(alpha=0.1, ks=0.6)")
+    dense = brdf.measure(model, "random:40000", "none", seed=2)
+    wi = incidence(30.0)
+    tight, _ = samples_near(dense, wi, max_points=None)
+    band, _ = samples_near(dense, wi, tol_deg=2.5, max_points=None)
+    assert ENOUGH <= len(tight) < len(band) / 5
+    # a sparse table falls back to the wide band
+    sparse = brdf.measure(model, "random:800", "none", seed=2)
+    assert len(samples_near(sparse, wi, max_points=None)[0]) == len(
+        samples_near(sparse, wi, tol_deg=2.5, max_points=None)[0])
