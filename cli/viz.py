@@ -83,8 +83,9 @@ def add_parsers(sub, subcommand):
 
     p = subcommand(kinds, "inplane", plot_inplane, "in-plane polar plot",
                    "Polar plot of f_r in the plane of incidence for several incidence angles: "
-                   "MATERIAL's curves, measured samples within 2.5 degrees of each incidence "
-                   "and of the plane as markers.", "print a JSON summary")
+                   "MATERIAL's curves, measured samples taken at each incidence and in its "
+                   "plane (within 0.25, 1 or 2.5 degrees: the tightest that finds 30) as "
+                   "markers.", "print a JSON summary")
     _material(p)
     _data(p)
     p.add_argument("--theta-i", type=arguments.theta_list, default=[0.0, 30.0, 60.0],

@@ -104,8 +104,9 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
     phi_i : float
         Azimuth of the plane of incidence, degrees.
     data : Table, optional
-        Measured samples drawn as markers (default: ``subject`` when it is a table). Samples
-        within 2.5 degrees of the incidence and of the plane are shown.
+        Measured samples drawn as markers (default: ``subject`` when it is a table): those
+        within 0.25, 1 or 2.5 degrees (the tightest that finds 30) of the incidence and of the
+        plane (:func:`brdf.viz.samples.samples_near`).
     log : bool
         Log radius over :data:`POLAR_DECADES` decades.
     cosine : bool
