@@ -9,6 +9,7 @@ atomically.
 """
 
 import math
+import textwrap
 
 import numpy as np
 
@@ -63,7 +64,6 @@ def _check_channel(subject, channel):
 
 def _title(subject, channel, extra="", width=70):
     """Subject, channel choice and ``extra``, wrapped: specs can be long."""
-    import textwrap
     which = channel_label(subject, channel)
     return textwrap.fill(", ".join(p for p in (label(subject), which, extra) if p), width)
 
@@ -368,5 +368,6 @@ def predictive_plot(posterior, data=None, *, theta_i=30.0, draws=100, seed=0, ch
         ax.title.set_fontsize(9)
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3)
-    fig.suptitle(_title(model, None, "posterior predictive", width=140), fontsize=9)
+    # the bands are per channel: no channel choice in the title
+    fig.suptitle(textwrap.fill(f"{label(model)}, posterior predictive", 140), fontsize=9)
     return fig
