@@ -75,6 +75,8 @@ def _hemisphere(resolution):
 
 def lobe_values(subject, wi, wo, cosine=True, channel=None):
     """r(wo) in 1/sr: ``subject.eval(wi, wo)`` reduced to one channel, times cos(theta_o)."""
+    # a patch of area A under irradiance E sends I(wo) = L_o A cos(theta_o) = f E A cos(theta_o)
+    # towards wo (Nicodemus et al. 1977, NBS Monograph 160): f cos is I per incident flux E A
     f = channel_values(subject.eval(np.broadcast_to(wi, wo.shape), wo), channel)
     return f * wo[..., 2] if cosine else f
 
@@ -100,7 +102,8 @@ def lobe_surface(subject, wi, *, cosine=True, log=False, channel=None, resolutio
     wi : array_like, shape (3,)
         Unit incident direction in the local frame (z the normal).
     cosine : bool
-        Draw f cos(theta_o) (the reflected radiance per unit irradiance) or f alone.
+        Draw f cos(theta_o) (the radiant intensity reflected towards wo per unit incident
+        flux) or f alone.
     log : bool
         Log radius over :data:`LOG_DECADES` decades below ``peak``.
     channel : int, optional
