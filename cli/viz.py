@@ -181,7 +181,8 @@ def _done(args, out, kind, **facts):
     if args.json:
         out.json({"kind": kind, "output": args.output, **facts})
     elif args.output:
-        out.text(f"wrote {args.output} ({kind})")
+        drawn = f", measured samples from {facts['data']}" if facts.get("data") else ""
+        out.text(f"wrote {args.output} ({kind}{drawn})")
     return EXIT_OK
 
 
@@ -210,7 +211,8 @@ def plot_inplane(args, out):
     subject, data = _with_data(args)
     fig = inplane_plot(subject, args.theta_i, args.phi_i, data=data, log=not args.linear,
                        cosine=args.cosine, channel=args.channel)
-    return _save(args, out, "inplane", fig, material=str(subject), theta_i=args.theta_i)
+    return _save(args, out, "inplane", fig, material=str(subject), theta_i=args.theta_i,
+                 data=None if data is None else str(data))
 
 
 def plot_slice(args, out):
