@@ -10,6 +10,7 @@ import sys
 import textwrap
 
 from . import arguments, commands, render
+from . import viz as viz_commands
 from .output import Output
 
 PROG = "brdf-fit"
@@ -162,6 +163,7 @@ def build_parser():
     _compare_parser(sub)
     _batch_parser(sub)
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
+    viz_commands.add_parsers(sub, _subcommand)
     return parser
 
 

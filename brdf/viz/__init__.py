@@ -1,0 +1,18 @@
+"""Pictures of BRDFs: 3-D lobes (:mod:`brdf.viz.lobes`, pyvista) and the 2-D plots analysts
+expect (:mod:`brdf.viz.plots`, matplotlib).
+
+Every function takes a model (``brdf.parse``, ``brdf.load_report(...).model``) or a measured
+table (``brdf.read``) and evaluates it through its own ``eval`` / ``albedo``. pyvista and
+matplotlib are imported only when a picture is made, so ``import brdf.viz`` stays cheap.
+
+>>> import brdf
+>>> from brdf import viz
+>>> fig = viz.albedo_plot(brdf.parse("lambert(albedo=0.8) + ggx(alpha=0.2)"))
+"""
+
+from .lobes import lobe_plotter, lobe_surface, plot_lobes
+from .plots import (albedo_plot, corner_plot, inplane_plot, predictive_plot, residual_plot,
+                    save_figure, slice_plot)
+
+__all__ = ["plot_lobes", "lobe_plotter", "lobe_surface", "inplane_plot", "slice_plot",
+           "albedo_plot", "residual_plot", "corner_plot", "predictive_plot", "save_figure"]

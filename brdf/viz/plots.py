@@ -1,0 +1,373 @@
+"""The 2-D plots BRDF analysts expect, with matplotlib: in-plane polar lobes of measurements
+against a fit, the theta_h / theta_d image slice in the MERL layout, directional albedo against
+theta_i, residual maps of a fit over a table's samples, and the posterior's corner plot and
+predictive bands (drawn from :class:`brdf.fitting.mcmc.Posterior`).
+
+Each function returns a :class:`matplotlib.figure.Figure` built without pyplot, so no window
+system or backend choice is involved (PNGs are drawn by Agg); :func:`save_figure` writes one
+atomically.
+"""
+
+import math
+import textwrap
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import directions_from_half_diff, half_diff_from_directions
+from .samples import (channel_count, channel_label, channel_values, in_plane,
+                      in_plane_directions, incidence, is_table, label, samples_near)
+
+__all__ = ["inplane_plot", "slice_plot", "albedo_plot", "residual_plot", "corner_plot",
+           "predictive_plot", "save_figure", "F_LABEL"]
+
+F_LABEL = "f_r [1/sr]"
+#: Decades below the peak that a log-scale polar plot shows.
+POLAR_DECADES = 3.0
+#: Grazing cutoff of residual maps (degrees), as brdf.fit's default: the values past it are
+#: the least reliable measurements and fits leave them out.
+CUTOFF_DEG = 80.0
+#: Most points in the measured-against-model scatter (the map bins every sample).
+SCATTER_POINTS = 20000
+#: Line colours of successive incidence angles or subjects (matplotlib's tab10).
+CYCLE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+         "#7f7f7f", "#bcbd22", "#17becf")
+#: Colours of named channels.
+CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
+
+
+def _grey_gaps(name):
+    """Colour map ``name`` drawing missing pixels (NaN: below the horizon, no sample) grey."""
+    from matplotlib import colormaps
+    return colormaps[name].with_extremes(bad="#dddddd")
+
+
+def save_figure(fig, path, force=False, dpi=100):
+    """Write ``fig`` as PNG at ``path`` atomically; an existing file only with ``force``."""
+    from ..io import atomic_output
+    if not str(path).lower().endswith(".png"):
+        raise InputError(f"{path}: plots are written as PNG; name the file ....png")
+    with atomic_output(path, force) as tmp:
+        fig.savefig(tmp, format="png", dpi=dpi)
+    return path
+
+
+def _figure(width, height, **options):
+    from matplotlib.figure import Figure
+    return Figure(figsize=(width, height), layout="constrained", **options)
+
+
+def _check_channel(subject, channel):
+    if channel is not None:
+        channel_values(np.zeros(channel_count(subject)), channel)
+
+
+def _title(subject, channel, extra="", width=70):
+    """Subject, channel choice and ``extra``, wrapped: specs can be long."""
+    which = channel_label(subject, channel)
+    return textwrap.fill(", ".join(p for p in (label(subject), which, extra) if p), width)
+
+
+# -- in-plane polar plot ----------------------------------------------------------------------
+
+def _in_plane_samples(data, wi):
+    """The samples near incidence ``wi`` and in its plane (:func:`samples_near`)."""
+    return samples_near(data, wi, plane=True)
+
+
+def _log_radius(ax, peak):
+    """Map values to radii in decades above a round floor at least :data:`POLAR_DECADES`
+    below ``peak``; ticks read in 1/sr."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter
+    floor = 10.0 ** math.floor(math.log10(peak) - POLAR_DECADES)
+    top = math.ceil(math.log10(peak / floor) - 1e-9)
+    ax.set_rlim(0.0, top)
+    ax.yaxis.set_major_locator(FixedLocator(np.arange(1, top + 1)))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda r, _: f"{floor * 10.0 ** r:g}"))
+    return lambda f: np.log10(np.maximum(f, floor) / floor)
+
+
+def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, log=True,
+                 cosine=False, channel=None, step=0.5):
+    """In-plane polar plot: the BRDF in the plane of incidence for several incidence angles,
+    measured samples as markers over the subject's curves.
+
+    The polar angle is theta_o from the normal (up), negative on the incident side (left) and
+    positive on the specular side (right); a dotted ray marks each incidence direction.
+
+    Parameters
+    ----------
+    subject : Model or Table
+        The curves (a table: its interpolation).
+    theta_i : sequence of float
+        Incidence angles, degrees in [0, 90).
+    phi_i : float
+        Azimuth of the plane of incidence, degrees.
+    data : Table, optional
+        Measured samples drawn as markers (default: ``subject`` when it is a table): those
+        within 0.25, 1 or 2.5 degrees (the tightest that finds 30) of the incidence and of the
+        plane (:func:`brdf.viz.samples.samples_near`).
+    log : bool
+        Log radius over :data:`POLAR_DECADES` decades.
+    cosine : bool
+        Plot f cos(theta_o) instead of f.
+    channel : int, optional
+        Default: the mean over channels.
+    """
+    _check_channel(subject, channel)
+    if data is None and is_table(subject):
+        data = subject
+    angles = np.arange(-89.0, 89.0 + step / 2, step)
+    rows = []
+    for t in np.atleast_1d(theta_i):
+        wi = incidence(t, phi_i)
+        wo = in_plane_directions(wi, angles)
+        curve = channel_values(subject.eval(np.broadcast_to(wi, wo.shape), wo), channel)
+        points = None
+        if data is not None:
+            swo, values = _in_plane_samples(data, wi)
+            points = (in_plane(wi, swo)[1], channel_values(values, channel)
+                      * (swo[:, 2] if cosine else 1.0))
+        rows.append((float(t), curve * (wo[:, 2] if cosine else 1.0), points))
+    peak = max([np.nanmax(c) for _, c, _ in rows] +
+               [np.nanmax(p[1]) for _, _, p in rows if p is not None and len(p[1])])
+    if not peak > 0:
+        raise InputError(f"{subject}: the BRDF is zero in the plane of incidence")
+    fig = _figure(7.0, 3.6)
+    ax = fig.add_subplot(projection="polar")
+    ax.set_theta_zero_location("N")
+    ax.set_theta_direction(-1)
+    ax.set_thetamin(-90)
+    ax.set_thetamax(90)
+    radius = _log_radius(ax, peak) if log else (lambda f: f)
+    for k, (t, curve, points) in enumerate(rows):
+        colour = CYCLE[k % len(CYCLE)]
+        ax.plot(np.radians(angles), radius(curve), color=colour, lw=1.6,
+                label=f"theta_i = {t:g}°")
+        ax.plot([-math.radians(t)] * 2, [0, ax.get_rmax()], ls=":", color=colour, lw=1)
+        if points is not None and len(points[0]):
+            ax.plot(np.radians(points[0]), radius(points[1]), "o", ms=3.5, color=colour,
+                    mfc="none", mew=0.9)
+    if any(p is not None and len(p[0]) for _, _, p in rows):
+        ax.plot([], [], "o", color="black", mfc="none", label="measured")
+    quantity = "f_r cos(theta_o) [1/sr]" if cosine else F_LABEL
+    ax.set_title(_title(subject, channel, f"phi_i = {float(phi_i):g}°"), fontsize=9)
+    # the half disc leaves the lower half of the axes empty: pull the label up into it
+    ax.set_xlabel("radius: " + quantity + (" (log)" if log else "") + "\nangle: theta_o "
+                  "[deg], incident side < 0 < specular side", fontsize=9, labelpad=-30)
+    ax.set_rlabel_position(-90)
+    ax.tick_params(axis="y", labelsize=7)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8, frameon=False)
+    return fig
+
+
+# -- theta_h / theta_d slice (MERL layout) ----------------------------------------------------
+
+def _merl_theta_h_axis(ax):
+    """x from sqrt(theta_h / 90 deg): the MERL table's theta_h spacing, ticks in degrees."""
+    ticks = np.array([0, 1, 5, 10, 20, 30, 45, 60, 90])
+    ax.set_xticks(np.sqrt(ticks / 90.0), [f"{t:g}" for t in ticks])
+    ax.set_xlabel("theta_h [deg] (square-root spacing, as MERL)")
+
+
+def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
+    """The theta_h / theta_d image at a fixed phi_d in the MERL layout, log colour.
+
+    Specular reflection is the left column (theta_h = 0), retro-reflection the bottom row
+    (theta_d = 0), grazing Fresnel rises at the top; pixels whose directions fall below the
+    horizon are left blank (Burley 2012, "Physically-based shading at Disney", fig. 5).
+    """
+    from matplotlib.colors import LogNorm
+    _check_channel(subject, channel)
+    if not math.isfinite(phi_d):
+        raise InputError(f"phi_d {phi_d!r} must be a finite number of degrees")
+    u = (np.arange(resolution) + 0.5) / resolution
+    theta_h = 0.5 * math.pi * u ** 2                     # MERL: theta_h = (pi/2) u^2
+    theta_d = 0.5 * math.pi * (np.arange(resolution) + 0.5) / resolution
+    wi, wo = directions_from_half_diff(theta_h[None, :], 0.0, theta_d[:, None],
+                                       math.radians(phi_d))
+    f = channel_values(subject.eval(wi, wo), channel)
+    f = np.where((wi[..., 2] > 0) & (wo[..., 2] > 0) & (f > 0), f, np.nan)
+    if not np.isfinite(f).any():
+        raise InputError(f"{subject}: no positive value on the slice phi_d = {phi_d:g}")
+    fig = _figure(5.6, 4.6)
+    ax = fig.add_subplot()
+    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=_grey_gaps(
+        "magma"),
+                      norm=LogNorm(vmin=np.nanmax(f) * 1e-4 if np.nanmin(f) < np.nanmax(f)
+                                   * 1e-4 else np.nanmin(f), vmax=np.nanmax(f)),
+                      interpolation="nearest")
+    _merl_theta_h_axis(ax)
+    ax.set_ylabel("theta_d [deg]")
+    ax.set_title(_title(subject, channel, f"phi_d = {phi_d:g}°", width=60), fontsize=9)
+    fig.colorbar(image, ax=ax, label=F_LABEL + " (log)")
+    return fig
+
+
+# -- directional albedo -----------------------------------------------------------------------
+
+def albedo_plot(*subjects, channel=None, steps=90, phi_i=0.0):
+    """Directional albedo a(theta_i) of one or more subjects with the energy limit 1.
+
+    Per subject, the mean over channels as a line with the range of the channels shaded (the
+    energy check concerns the largest), or one ``channel``. Models use ``model.albedo``
+    (adaptive cubature), tables their quadrature over the interpolant, as ``brdf.check`` does.
+    """
+    if not subjects:
+        raise InputError("give at least one model or table")
+    theta = np.linspace(0.0, 89.0, int(steps))
+    wi = np.stack([incidence(t, phi_i) for t in theta])
+    fig = _figure(6.4, 4.4 + 0.3 * len(subjects))
+    ax = fig.add_subplot()
+    top = 1.0
+    for k, subject in enumerate(subjects):
+        _check_channel(subject, channel)
+        if is_table(subject) and getattr(subject, "in_plane", False):
+            raise InputError(f"{subject}: an in-plane scan has no directional albedo (nothing "
+                             "was measured out of the plane)")
+        a = np.asarray(subject.albedo(wi), float)
+        colour = CYCLE[k % len(CYCLE)]
+        label = _title(subject, channel, width=90)
+        if channel is None and a.shape[-1] > 1:
+            ax.fill_between(theta, a.min(axis=-1), a.max(axis=-1), color=colour, alpha=0.2,
+                            lw=0, label="range of the channels")
+        line = channel_values(a, channel)
+        ax.plot(theta, line, color=colour, lw=1.6, label=label)
+        top = max(top, float(np.nanmax(a)))
+    ax.axhline(1.0, color="black", ls="--", lw=1, label="1: energy conservation limit")
+    ax.set_xlim(0, 90)
+    ax.set_ylim(0, 1.08 * top)
+    ax.set_xlabel("theta_i [deg]")
+    ax.set_ylabel("directional albedo a(theta_i)")
+    fig.legend(fontsize=7, loc="outside lower center")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+# -- residual maps ----------------------------------------------------------------------------
+
+def _fit_samples(model, table, channel, cutoff):
+    """Measured and model values over the table's samples within the cutoff, both positive."""
+    if not is_table(table):
+        raise InputError(f"{table}: residuals need a measured table (brdf.read)")
+    _check_channel(table, channel)
+    wi, wo = np.asarray(table.wi, float), np.asarray(table.wo, float)
+    measured = channel_values(table.values, channel)
+    cos_cut = math.cos(math.radians(cutoff)) - 1e-12
+    keep = (wi[:, 2] >= cos_cut) & (wo[:, 2] >= cos_cut) & np.isfinite(measured) \
+        & (measured > 0)
+    predicted = channel_values(model.eval(wi[keep], wo[keep]), channel)
+    positive = predicted > 0
+    if not positive.any():
+        raise InputError(f"{table}: no sample within {cutoff:g} degrees where both the "
+                         "measurement and the model are positive")
+    return wi[keep][positive], wo[keep][positive], measured[keep][positive], \
+        predicted[positive]
+
+
+def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
+    """How a model misses a table: model against measured values (log-log, with the 1:1 line)
+    and a map of the mean log10(model / measured) over (theta_h, theta_d), every sample within
+    ``cutoff`` degrees binned, in the MERL layout of :func:`slice_plot`. ``bins`` per axis
+    default to about two samples per bin on average, between 12 and 45."""
+    wi, wo, measured, predicted = _fit_samples(model, table, channel, cutoff)
+    log_ratio = np.log10(predicted / measured)
+    theta_h, _, theta_d, _ = half_diff_from_directions(wi, wo)
+    if bins is None:
+        bins = int(np.clip(np.sqrt(len(measured) / 2), 12, 45))
+    x = np.sqrt(np.clip(theta_h / (0.5 * math.pi), 0, 1))
+    y = np.degrees(theta_d)
+    edges = (np.linspace(0, 1, bins + 1), np.linspace(0, 90, bins + 1))
+    total, _, _ = np.histogram2d(x, y, edges, weights=log_ratio)
+    count, _, _ = np.histogram2d(x, y, edges)
+    mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).T
+    limit = max(float(np.nanpercentile(np.abs(mean), 99)), 1e-3)
+    fig = _figure(11.0, 4.6)
+    left, right = fig.subplots(1, 2)
+    pick = np.unique(np.linspace(0, len(measured) - 1, min(len(measured), SCATTER_POINTS))
+                     .round().astype(int))
+    left.scatter(measured[pick], predicted[pick], s=3, alpha=0.4, lw=0, color=CYCLE[0])
+    lo = min(measured.min(), predicted.min())
+    hi = max(measured.max(), predicted.max())
+    left.plot([lo, hi], [lo, hi], color="black", lw=1, label="model = measured")
+    left.set(xscale="log", yscale="log", xlabel="measured " + F_LABEL,
+             ylabel="model " + F_LABEL)
+    rms = float(np.sqrt(np.mean(log_ratio ** 2)))
+    left.set_title(f"{len(measured):,} samples within {cutoff:g}°; RMS log10 ratio "
+                   f"{rms:.3f}", fontsize=9)
+    left.legend(fontsize=8)
+    left.grid(alpha=0.3)
+    image = right.imshow(mean, origin="lower", extent=(0, 1, 0, 90), aspect="auto",
+                         cmap=_grey_gaps("RdBu_r"), vmin=-limit, vmax=limit,
+                         interpolation="nearest")
+    _merl_theta_h_axis(right)
+    right.set_ylabel("theta_d [deg]")
+    right.set_title("mean over samples in each bin (blue: model too low)", fontsize=9)
+    fig.colorbar(image, ax=right, label="log10(model / measured)")
+    fig.suptitle(_title(table, channel, f"fitted by {label(model)}", width=140), fontsize=9)
+    return fig
+
+
+# -- posterior --------------------------------------------------------------------------------
+
+def corner_plot(posterior, path, force=False, dpi=100):
+    """The posterior's corner plot as PNG at ``path``
+    (:meth:`brdf.fitting.mcmc.Posterior.corner`)."""
+    posterior.corner(path, force=force, dpi=dpi)
+    return path
+
+
+def _band_channels(bands, names, channel):
+    count = bands.shape[-1]
+    if channel is not None:
+        channel_values(np.zeros(count), channel)
+        return [channel]
+    if count > 3:
+        raise InputError(f"the posterior has {count} channels; pick one to plot (channel=, "
+                         "--channel)")
+    return list(range(count))
+
+
+def predictive_plot(posterior, data=None, *, theta_i=30.0, draws=100, seed=0, channel=None):
+    """Posterior predictive bands (:meth:`~brdf.fitting.mcmc.Posterior.predictive`): the
+    in-plane BRDF at ``theta_i`` with the measured in-plane samples, and the directional
+    albedo with the limit 1; medians as lines, 68 % and 95 % bands shaded."""
+    bands = posterior.predictive(theta_i=theta_i, draws=draws, seed=seed)
+    slice_, curve = bands["in_plane"], bands["albedo"]
+    model = posterior.fit.model
+    names = getattr(data, "channel_names", None) or [str(c) for c in
+                                                     range(slice_["bands"].shape[-1])]
+    channels = _band_channels(slice_["bands"], names, channel)
+    fig = _figure(11.0, 4.4)
+    left, right = fig.subplots(1, 2)
+    for ax, x, b in ((left, slice_["theta_o_deg"], slice_["bands"]),
+                     (right, curve["theta_i_deg"], curve["bands"])):
+        for c in channels:
+            colour = CHANNEL_COLOURS.get(names[c], CYCLE[c % len(CYCLE)])
+            ax.fill_between(x, b[0, :, c], b[4, :, c], color=colour, alpha=0.15, lw=0)
+            ax.fill_between(x, b[1, :, c], b[3, :, c], color=colour, alpha=0.3, lw=0)
+            ax.plot(x, b[2, :, c], color=colour, lw=1.4,
+                    label=f"median, channel {names[c]}" if len(channels) > 1 else "median")
+    left.fill_between([], [], [], color="grey", alpha=0.3, label="68 % band")
+    left.fill_between([], [], [], color="grey", alpha=0.15, label="95 % band")
+    if data is not None:
+        wi = incidence(theta_i)
+        wo, values = _in_plane_samples(data, wi)
+        signed = in_plane(wi, wo)[1]
+        for c in channels:
+            colour = CHANNEL_COLOURS.get(names[c], CYCLE[c % len(CYCLE)])
+            left.plot(signed, values[:, c], "o", ms=3, mfc="none", color=colour)
+        left.plot([], [], "o", mfc="none", color="black", label="measured")
+    left.set(yscale="log", xlim=(-90, 90), xlabel="theta_o [deg] (incident side < 0 < "
+             "specular side)", ylabel=F_LABEL,
+             title=f"in-plane, theta_i = {theta_i:g}°, {draws} posterior draws")
+    right.axhline(1.0, color="black", ls="--", lw=1, label="1: energy conservation limit")
+    right.set(xlim=(0, 90), xlabel="theta_i [deg]", ylabel="directional albedo",
+              title="directional albedo")
+    for ax in (left, right):
+        ax.title.set_fontsize(9)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+    # the bands are per channel: no channel choice in the title
+    fig.suptitle(textwrap.fill(f"{label(model)}, posterior predictive", 140), fontsize=9)
+    return fig

@@ -1,0 +1,147 @@
+"""brdf.viz.plots: every kind draws the subject's own eval/albedo, writes a valid PNG of the
+stated size atomically, and refuses bad input in one line."""
+
+import math
+
+import numpy as np
+import pytest
+
+import brdf
+from brdf.errors import InputError, OutputError
+from brdf.viz import (albedo_plot, corner_plot, inplane_plot, predictive_plot, residual_plot,
+                      save_figure, slice_plot)
+from pictures import distinct_colours, drawn_fraction, read_png
+
+MODEL = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, ks=0.6)"
+
+
+@pytest.fixture(scope="module")
+def model():
+    return brdf.parse(MODEL)
+
+
+@pytest.fixture(scope="module")
+def table(model):
+    return brdf.measure(model, "grid:10,30", "relative:0.05", seed=3)
+
+
+@pytest.fixture(scope="module")
+def posterior():
+    table = brdf.measure("lambert(albedo=0.5)", "random:300", "additive:0.01", seed=4)
+    # a short chain: the plots, not convergence, are under test here
+    return table, brdf.mcmc(table, "lambert(albedo=0.3)", seed=2, max_steps=400)
+
+
+def assert_png(path, fig, dpi=100):
+    img = read_png(path)
+    width, height = fig.get_size_inches() * dpi
+    assert img.shape[:2] == (round(height), round(width))
+    assert distinct_colours(img) > 50 and drawn_fraction(img) > 0.03
+    return img
+
+
+def test_inplane_plot(tmp_path, model, table):
+    fig = inplane_plot(model, [0.0, 30.0, 60.0], data=table, log=False)
+    ax = fig.axes[0]
+    curves = [line for line in ax.lines if line.get_label().startswith("theta_i")]
+    assert [c.get_label() for c in curves] == ["theta_i = 0°", "theta_i = 30°", "theta_i = 60°"]
+    # the 30-degree curve is the model's mean over channels along the plane of incidence
+    angle = np.asarray(curves[1].get_xdata())
+    wo = brdf.geometry.spherical_to_cartesian(np.abs(angle), np.where(angle < 0, 0.0, math.pi))
+    wi = brdf.geometry.spherical_to_cartesian(math.radians(30.0), 0.0)
+    np.testing.assert_allclose(curves[1].get_ydata(),
+                               model.eval(np.broadcast_to(wi, wo.shape), wo).mean(axis=-1))
+    markers = [line for line in ax.lines if line.get_marker() == "o" and len(line.get_xdata())]
+    assert len(markers) == 3 and all(len(m.get_xdata()) >= 10 for m in markers)
+    assert_png(save_figure(fig, tmp_path / "inplane.png"), fig)
+
+
+def test_inplane_of_a_table_draws_its_own_samples(tmp_path, table):
+    fig = inplane_plot(table, [30.0], channel=1)
+    assert any(line.get_marker() == "o" and len(line.get_xdata()) for line in fig.axes[0].lines)
+    assert "channel g" in fig.axes[0].get_title()
+
+
+def test_slice_plot_is_the_merl_layout_in_log_colour(tmp_path, model):
+    fig = slice_plot(model, resolution=32)
+    image = fig.axes[0].images[0]
+    values = np.ma.filled(image.get_array(), np.nan)
+    assert values.shape == (32, 32)
+    # pixel (row j, column i) is f at theta_h = (pi/2) u_i^2 (MERL), theta_d linear, phi_d 90
+    u = (np.arange(32) + 0.5) / 32
+    for j, i in [(3, 0), (10, 5), (20, 25)]:
+        wi, wo = brdf.geometry.directions_from_half_diff(0.5 * math.pi * u[i] ** 2, 0.0,
+                                                         0.5 * math.pi * u[j], 0.5 * math.pi)
+        assert values[j, i] == pytest.approx(model.eval(wi, wo).mean(), rel=1e-9)
+    assert values[10, 0] > 5 * values[10, 20]      # the specular column stands out
+    assert type(image.norm).__name__ == "LogNorm"
+    assert fig.axes[1].get_ylabel() == "f_r [1/sr] (log)"
+    assert_png(save_figure(fig, tmp_path / "slice.png"), fig)
+
+
+def test_albedo_plot_draws_the_subjects_albedo_and_the_limit(tmp_path):
+    fig = albedo_plot(brdf.parse("lambert(albedo=[0.2,0.5,0.8])"), steps=10)
+    ax = fig.axes[0]
+    (line,) = [ln for ln in ax.lines if "lambert" in ln.get_label()]
+    np.testing.assert_allclose(line.get_ydata(), 0.5, rtol=1e-4)
+    limit = [ln for ln in ax.lines if ln.get_label().startswith("1:")]
+    assert len(limit) == 1 and np.allclose(limit[0].get_ydata(), 1.0)
+    band = ax.collections[0].get_paths()[0].vertices[:, 1]
+    assert band.min() == pytest.approx(0.2, rel=1e-4) and band.max() == pytest.approx(0.8,
+                                                                                     rel=1e-4)
+    assert_png(save_figure(fig, tmp_path / "albedo.png"), fig)
+
+
+def test_albedo_of_an_in_plane_scan_is_refused(model):
+    scan = brdf.measure(model, "inplane:10", "none", seed=0)
+    with pytest.raises(InputError, match="in-plane scan has no directional albedo"):
+        albedo_plot(scan)
+
+
+def test_residual_plot(tmp_path, model, table):
+    fig = residual_plot(model, table, channel=0)
+    rms = float(fig.axes[0].get_title().split("ratio ")[1])
+    # 5 % relative noise on one channel: log10(1 + 0.05 z) has an RMS near 0.05 / ln 10 (the
+    # mean of three channels would average the independent noise down by sqrt(3))
+    assert rms == pytest.approx(0.05 / math.log(10), rel=0.2)
+    worse = residual_plot(brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.4, ks=0.6)"),
+                          table, channel=0)
+    assert float(worse.axes[0].get_title().split("ratio ")[1]) > 2 * rms
+    assert fig.axes[2].get_ylabel() == "log10(model / measured)"
+    assert_png(save_figure(fig, tmp_path / "residuals.png"), fig)
+
+
+def test_residuals_need_a_table(model):
+    with pytest.raises(InputError, match="need a measured table"):
+        residual_plot(model, model)
+
+
+def test_corner_and_predictive(tmp_path, posterior):
+    table, post = posterior
+    path = corner_plot(post, tmp_path / "corner.png")
+    assert distinct_colours(read_png(path)) > 20
+    fig = predictive_plot(post, table, theta_i=30.0, draws=20)
+    left, right = fig.axes
+    bands = post.predictive(theta_i=30.0, draws=20, seed=0)
+    (median,) = [ln for ln in right.lines if ln.get_label() == "median"]
+    np.testing.assert_allclose(median.get_ydata(), bands["albedo"]["bands"][2, :, 0])
+    assert_png(save_figure(fig, tmp_path / "predictive.png"), fig)
+
+
+def test_save_figure_is_atomic_and_keeps_existing_files(tmp_path, model):
+    fig = albedo_plot(model, steps=5)
+    path = tmp_path / "a.png"
+    path.write_bytes(b"mine")
+    with pytest.raises(OutputError, match="exists"):
+        save_figure(fig, path)
+    assert path.read_bytes() == b"mine"
+    save_figure(fig, path, force=True)
+    read_png(path)
+    with pytest.raises(InputError, match="PNG"):
+        save_figure(fig, tmp_path / "a.pdf")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png"]
+
+
+def test_a_missing_channel_is_a_one_line_error(model):
+    with pytest.raises(InputError, match="channel 7 does not exist"):
+        slice_plot(model, channel=7)
