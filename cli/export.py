@@ -29,7 +29,8 @@ def add_fit_options(p):
     """``--export`` and ``--export-to`` of ``brdf-fit fit``."""
     p.add_argument("--export", choices=tuple(FORMATS), metavar="FORMAT",
                    help=f"also write the fitted model: {FORMAT_HELP}; to --export-to, or "
-                        "beside the -o report with the format's extension (.xml, .gltf)")
+                        "beside the -o report with the format's extension (.xml, .gltf); "
+                        "with --json its summary is under the key \"export\"")
     p.add_argument("--export-to", metavar="PATH", help="where --export writes")
 
 

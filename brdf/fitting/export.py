@@ -173,7 +173,7 @@ def check_families(model, format):
     """Raise the error :func:`export` would give for a model whose families ``format`` lacks,
     without converting anything (``brdf-fit fit --export`` asks before it fits)."""
     model = _model_of(model)
-    shape = " + ".join(lobe.name for lobe in model.lobes)
+    shape = " + ".join(lobe.name for lobe in _gltf_lobes(model)[0])
     if format == "gltf" and shape not in EXPORTABLE["gltf"]:
         raise _unsupported(model, "gltf", ": glTF's microfacet lobe is GGX only"
                            if "beckmann" in shape else "")
@@ -449,62 +449,83 @@ def _gltf_roughness(lobe, material, notes, where):
                      "(Khronos Sample Viewer), approximate")
 
 
-def _gltf(model):
+def _gltf_lobes(model):
+    """The lobes with the diffuse one first (``ggx + lambert`` exports like ``lambert + ggx``),
+    and their flat-name prefixes."""
     from ..models.base import Sum
-    check_families(model, "gltf")
-    lobes = list(model.lobes)
-    shape = " + ".join(lobe.name for lobe in lobes)
     names = model.lobe_names() if isinstance(model, Sum) else [model.name]
-    notes, ext = [], {}
-    material = {"name": "brdf", "pbrMetallicRoughness": {}}
-    pbr = material["pbrMetallicRoughness"]
-    if shape == "lambert":
-        pbr.update(baseColorFactor=_rgb(lobes[0]["albedo"]) + [1.0], metallicFactor=0.0,
-                   roughnessFactor=1.0)
-        ext["KHR_materials_specular"] = {"specularFactor": 0.0}
-        notes.append("lambert: metallic 0, baseColor = albedo, KHR_materials_specular "
-                     "specularFactor 0 (no specular layer), exact")
-    elif shape == "ggx":
-        lobe = lobes[0]
-        f0 = np.asarray(lobe["ks"], float) * _fresnel_f0(lobe["fresnel"])
-        if np.any(f0 > 1.0):
-            raise InputError(f"{model}: no gltf equivalent: ks F0 = {np.max(f0):.6g} > 1, and "
-                             "glTF's baseColor lies in [0, 1]")
-        pbr.update(baseColorFactor=_rgb(f0) + [1.0], metallicFactor=1.0)
-        exact_f = lobe["fresnel"].name == "schlick" and np.all(np.asarray(lobe["ks"]) == 1.0)
-        notes.append("ggx: metallic 1, baseColor = ks F0 with glTF's Schlick Fresnel (F90 = 1), "
-                     + ("exact" if exact_f else "approximate (exact for schlick with ks = 1)"))
-        _gltf_roughness(lobe, material, notes, "ggx")
-    else:
-        diffuse, lobe = lobes
-        ks = np.asarray(lobe["ks"], float)
-        f0 = ks * _fresnel_f0(lobe["fresnel"])
-        specular = float(ks.max())
-        if specular > 1.0:
-            raise InputError(f"{model}: no gltf equivalent: ks {specular:g} > 1, and "
-                             "KHR_materials_specular's specularFactor lies in [0, 1]")
-        color = np.zeros(3) if specular == 0.0 else np.broadcast_to(f0, (3,)) / specular
-        base = np.broadcast_to(diffuse["albedo"], (3,)) / np.maximum(1.0 - np.broadcast_to(
-            np.minimum(f0, 1.0), (3,)), 1e-12)
-        if np.any(base > 1.0):
-            raise InputError(f"{model}: no gltf equivalent: albedo / (1 - ks F0) = "
-                             f"{base.max():.6g} > 1, and glTF's baseColor lies in [0, 1]")
-        pbr.update(baseColorFactor=_rgb(base) + [1.0], metallicFactor=0.0)
-        ext["KHR_materials_specular"] = {"specularFactor": specular,
-                                         "specularColorFactor": _rgb(color)}
-        ext["KHR_materials_ior"] = {"ior": 0.0}
-        constant = lobe["fresnel"].name == "none" and np.all(ks == specular)
-        grey = np.all(ks == specular)
-        notes.append(f"{names[1]}: KHR_materials_ior ior 0 and KHR_materials_specular: F0 = "
-                     "specular x specularColor = ks F0, F90 = specular = max ks, "
-                     + ("exact" if lobe["fresnel"].name in ("none", "schlick") and grey else
-                        "approximate (glTF's Fresnel is Schlick's, F90 = specular)"))
-        notes.append(f"{names[0]}: metallic 0, baseColor = albedo / (1 - ks F0) against glTF's "
-                     "(1 - F) diffuse weight, " + ("exact (F is constant)" if constant else
-                                                   "approximate (exact at normal incidence)"))
-        _gltf_roughness(lobe, material, notes, names[1])
-    if ext:
-        material["extensions"] = {**ext, **material.get("extensions", {})}
+    pairs = sorted(zip(names, model.lobes), key=lambda p: p[1].name != "lambert")
+    return [p[1] for p in pairs], [p[0] for p in pairs]
+
+
+def _gltf_diffuse(model, lobes, names, material, notes):
+    material["pbrMetallicRoughness"].update(baseColorFactor=_rgb(lobes[0]["albedo"]) + [1.0],
+                                            metallicFactor=0.0, roughnessFactor=1.0)
+    material["extensions"]["KHR_materials_specular"] = {"specularFactor": 0.0}
+    notes.append(f"{names[0]}: metallic 0, baseColor = albedo, KHR_materials_specular "
+                 "specularFactor 0 (no specular layer), exact")
+
+
+def _gltf_metal(model, lobes, names, material, notes):
+    lobe = lobes[0]
+    f0 = np.asarray(lobe["ks"], float) * _fresnel_f0(lobe["fresnel"])
+    if np.any(f0 > 1.0):
+        raise InputError(f"{model}: no gltf equivalent: ks F0 = {np.max(f0):.6g} > 1, and "
+                         "glTF's baseColor lies in [0, 1]")
+    material["pbrMetallicRoughness"].update(baseColorFactor=_rgb(f0) + [1.0], metallicFactor=1.0)
+    exact = lobe["fresnel"].name == "schlick" and np.all(np.asarray(lobe["ks"]) == 1.0)
+    notes.append(f"{names[0]}: metallic 1, baseColor = ks F0 with glTF's Schlick Fresnel "
+                 "(F90 = 1), " + ("exact" if exact else "approximate (exact for schlick with "
+                                                        "ks = 1)"))
+    _gltf_roughness(lobe, material, notes, names[0])
+
+
+def _gltf_plastic(model, lobes, names, material, notes):
+    """``lambert + ggx``: glTF's dielectric (1 - F) diffuse + F specular with F0 and F90 set
+    through KHR_materials_specular and KHR_materials_ior (ior 0 makes F0 = specular x
+    specularColor, as in the extension's specular-glossiness conversion)."""
+    diffuse, lobe = lobes
+    ks = np.asarray(lobe["ks"], float)
+    f0 = np.broadcast_to(ks * _fresnel_f0(lobe["fresnel"]), (3,))
+    specular = float(ks.max())
+    if specular > 1.0:
+        raise InputError(f"{model}: no gltf equivalent: ks {specular:g} > 1, and "
+                         "KHR_materials_specular's specularFactor lies in [0, 1]")
+    base = np.broadcast_to(diffuse["albedo"], (3,)) / np.maximum(1.0 - np.minimum(f0, 1.0),
+                                                                 1e-12)
+    if np.any(base > 1.0):
+        raise InputError(f"{model}: no gltf equivalent: albedo / (1 - ks F0) = "
+                         f"{base.max():.6g} > 1, and glTF's baseColor lies in [0, 1]")
+    material["pbrMetallicRoughness"].update(baseColorFactor=_rgb(base) + [1.0],
+                                            metallicFactor=0.0)
+    material["extensions"].update(
+        KHR_materials_specular={"specularFactor": specular, "specularColorFactor": _rgb(
+            np.zeros(3) if specular == 0.0 else f0 / specular)},
+        KHR_materials_ior={"ior": 0.0})
+    grey = bool(np.all(ks == specular))
+    schlick_like = lobe["fresnel"].name in ("none", "schlick")
+    notes.append(f"{names[1]}: KHR_materials_ior ior 0 and KHR_materials_specular: F0 = "
+                 "specular x specularColor = ks F0, F90 = specular = max ks, "
+                 + ("exact" if schlick_like and grey else
+                    "approximate (glTF's Fresnel is Schlick's with F90 = specular)"))
+    constant = lobe["fresnel"].name == "none" and grey
+    notes.append(f"{names[0]}: metallic 0, baseColor = albedo / (1 - ks F0) against glTF's "
+                 "(1 - F) diffuse weight, " + ("exact (F is constant)" if constant else
+                                               "approximate (exact at normal incidence)"))
+    _gltf_roughness(lobe, material, notes, names[1])
+
+
+_GLTF_SHAPES = {"lambert": _gltf_diffuse, "ggx": _gltf_metal, "lambert + ggx": _gltf_plastic}
+
+
+def _gltf(model):
+    check_families(model, "gltf")
+    lobes, names = _gltf_lobes(model)
+    notes = []
+    material = {"name": "brdf", "pbrMetallicRoughness": {}, "extensions": {}}
+    _GLTF_SHAPES[" + ".join(lobe.name for lobe in lobes)](model, lobes, names, material, notes)
+    if not material["extensions"]:
+        del material["extensions"]
     used = sorted(material.get("extensions", {}))
     deviation = relative_deviation(model.eval, lambda wi, wo: gltf_eval(material, wi, wo))
     exact = deviation <= EXACT and not any("approximate" in n for n in notes)

@@ -147,6 +147,7 @@ GLTF_EXACT = [
     "ggx(alpha=0.16, masking=height-correlated, fresnel=schlick(f0=[0.9,0.7,0.4]))",
     "ggx(alpha=0.09, alpha_y=0.36, masking=height-correlated, fresnel=schlick(f0=0.5))",
     "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2, masking=height-correlated)",
+    "ggx(ks=0.3, alpha=0.2, masking=height-correlated) + lambert(albedo=[0.5,0.4,0.3])",
 ]
 
 
