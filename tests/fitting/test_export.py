@@ -266,3 +266,13 @@ def test_cli_export_errors_exit_2_before_any_work(capsys, report, argv, fragment
     assert status == 2
     assert_one_error_line(err, *fragments)
     assert sorted(p.name for p in report.parent.iterdir()) == ["plastic.csv"]
+
+
+def test_cli_fit_export_to_a_path_reports_it_under_export_in_json(capsys, report):
+    target = report.parent / "material.gltf"
+    status, out, err = run(capsys, "fit", str(report), "lambert + ggx(alpha=0.4)", "--json",
+                           "--export", "gltf", "--export-to", str(target))
+    assert status == 0 and err == "", err
+    d = json.loads(out)
+    assert d["export"]["path"] == str(target) and d["export"]["format"] == "gltf"
+    assert json.loads(target.read_text())["materials"][0]["extras"]["brdf"]["spec"] == d["spec"]
