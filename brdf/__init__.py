@@ -15,7 +15,7 @@ from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "mcmc", "compare", "batch", "load_report", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "mcmc", "compare", "export", "batch", "load_report", "Table", "models", "geometry", "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 
@@ -50,6 +50,13 @@ def compare(data, specs, **options):
     :func:`brdf.fitting.compare`."""
     from .fitting import compare as _compare
     return _compare(data, specs, **options)
+
+
+def export(model, format, path=None, force=False):
+    """Write a model or fit (result, report, or report path) as a Mitsuba 3 BSDF or a glTF 2.0
+    material, stating what is exact and what approximate; see :func:`brdf.fitting.export`."""
+    from .fitting import export as _export
+    return _export(model, format, path, force)
 
 
 def load_report(path):

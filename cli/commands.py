@@ -266,7 +266,12 @@ def fit(args, out):
     atomically; exit 1 unless converged."""
     import brdf
     from brdf.errors import InputError
-    _refuse_existing(args, args.output, args.chain, args.corner)
+    from .export import export_path, report as export_report
+    target = export_path(args)
+    _refuse_existing(args, args.output, args.chain, args.corner, target)
+    if target:  # a model without an equivalent is refused before the fit, not after
+        from brdf.fitting.export import check_families
+        check_families(args.spec, args.export)
     if not args.mcmc and (args.walkers or args.chain or args.corner):
         raise InputError("--walkers, --chain and --corner need --mcmc")
     table = read_table(args.data)
@@ -286,10 +291,13 @@ def fit(args, out):
             post.corner(args.corner, force=args.force)
     if args.output:
         _write_json(report, args.output, args.force)
+    exported = target and brdf.export(result, args.export, target, force=args.force)
     if args.json:
-        out.json(report)
+        out.json(report if not exported else {**report, "export": exported.to_dict()})
     else:
         out.text(str(result) + ("" if post is None else "\n" + str(post)))
+        if exported:
+            export_report(exported, out, False)
     if post is not None and not post.converged:
         return EXIT_CHECK_FAILED
     failed = not result.converged or (args.energy_constraint and not result.energy["holds"])

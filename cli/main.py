@@ -9,7 +9,7 @@ import argparse
 import sys
 import textwrap
 
-from . import arguments, commands, render
+from . import arguments, commands, export, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -162,6 +162,7 @@ def build_parser():
     _fit_parser(sub)
     _compare_parser(sub)
     _batch_parser(sub)
+    export.add_parser(sub, _subcommand)
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     viz_commands.add_parsers(sub, _subcommand)
     return parser
@@ -220,6 +221,7 @@ def _fit_parser(sub):
                    help="cap on the chain length (default: 20000)")
     m.add_argument("--chain", metavar="PATH", help="save the chain (.npz, or .h5 with h5py)")
     m.add_argument("--corner", metavar="PNG", help="write a corner plot of the posterior")
+    export.add_fit_options(p.add_argument_group("export"))
 
 
 def _compare_parser(sub):

@@ -68,7 +68,9 @@ def compare(data, specs, *, by="aic", **fit_options):
         :func:`brdf.fitting.report.information_criteria` for the likelihood behind both).
     **fit_options
         Passed to :func:`brdf.fit` for every spec (loss, optimizer, starts, cutoff,
-        energy_constraint, seed, ...).
+        energy_constraint, seed, ...). A name in ``shared`` or ``fix`` applies to the specs
+        that have that parameter (``ggx.alpha`` leaves a ``ward`` spec alone); a name that no
+        spec has is an error.
 
     Returns
     -------
@@ -81,7 +83,8 @@ def compare(data, specs, *, by="aic", **fit_options):
     if len(specs) < 2:
         raise InputError(f"compare needs at least two specs, got {len(specs)}")
     table = _load(data)
-    results = [fit(table, spec, **fit_options) for spec in specs]
+    per_spec = _options_per_spec(specs, fit_options)
+    results = [fit(table, spec, **options) for spec, options in zip(specs, per_spec)]
     rows = [_row(spec, r) for spec, r in zip(specs, results)]
     order = sorted(range(len(rows)), key=lambda i: (rows[i][by], i))
     best = rows[order[0]][by]
@@ -90,6 +93,31 @@ def compare(data, specs, *, by="aic", **fit_options):
     for i, s in zip(order, support / support.sum()):
         ranked.append({**rows[i], "delta": rows[i][by] - best, "weight": float(s)})
     return Comparison(by, tuple(ranked), tuple(results[i] for i in order))
+
+
+def _options_per_spec(specs, options):
+    """The fit options of each spec: ``shared`` and ``fix`` cut down to the names it has.
+    Raises InputError for a name that no spec has, listing every spec's parameters."""
+    from ..spec import parse
+    from .problem import names_apply, parameter_names
+    names = [parameter_names(parse(s) if isinstance(s, str) else s) for s in specs]
+    shared, fix = list(options.get("shared", ())), dict(options.get("fix", {}) or {})
+    for what, given in (("shared", shared), ("fix", list(fix))):
+        for name in given:
+            if not any(names_apply(name, n) for n in names):
+                every = sorted({p for n in names for p in n})
+                raise InputError(f"{what}: unknown parameter {name!r} in all of the specs; "
+                                 f"parameters: {', '.join(every)} (per-channel ones also as "
+                                 "NAME[i])")
+    out = []
+    for n in names:
+        mine = dict(options)
+        if "shared" in options:
+            mine["shared"] = [s for s in shared if names_apply(s, n)]
+        if "fix" in options:
+            mine["fix"] = {k: v for k, v in fix.items() if names_apply(k, n)}
+        out.append(mine)
+    return out
 
 
 def _row(spec, result):

@@ -27,7 +27,7 @@ from ..models._kernels import lobe_eval
 from ..models.base import Component, Param, Sum
 from . import losses
 
-__all__ = ["Problem", "FreeParameter", "STEP", "resolve_name"]
+__all__ = ["Problem", "FreeParameter", "STEP", "resolve_name", "parameter_names", "names_apply"]
 
 #: Relative step of the central differences: it balances the truncation error (~h^2) against
 #: rounding (~eps / h), h = eps^(1/3) (Nocedal & Wright 2006, Numerical Optimization, 8.1).
@@ -106,6 +106,36 @@ def _replace_path(component, path, value):
     return component.replace(**{path[0]: _replace_path(component[path[0]], path[1:], value)})
 
 
+def _declarations(model):
+    """``(flat name, lobe index, path, declaration, value)`` of every numeric parameter."""
+    from ..models.base import Sum
+    lobes = model.lobes
+    prefixes = model.lobe_names() if isinstance(model, Sum) else [model.name]
+    for l, (prefix, lobe) in enumerate(zip(prefixes, lobes)):
+        for path, decl, value in _numeric(lobe):
+            yield f"{prefix}.{'.'.join(path)}", l, path, decl, value
+
+
+def parameter_names(model):
+    """Flat names (without channel indices) of a model's numeric parameters, as fits name
+    them: ``("lambert.albedo", "ggx.ks", "ggx.alpha", ...)``."""
+    return tuple(d[0] for d in _declarations(model))
+
+
+def names_apply(name, names):
+    """Whether ``--shared``/``--fix`` name ``name`` (indexed or not) refers to one of
+    ``names``; an ambiguous name is an error as in :func:`resolve_name`."""
+    m = _INDEXED.match(name)
+    base = m["base"] if m else name
+    try:
+        resolve_name(base, names, "")
+    except InputError as exc:
+        if "ambiguous" in str(exc):
+            raise
+        return False
+    return True
+
+
 def resolve_name(name, names, what):
     """The declared name ``name`` refers to: itself, or the unique declared name ending in
     ``.name`` (``alpha`` for ``ggx.alpha``). Raises InputError listing ``names`` otherwise."""
@@ -181,12 +211,8 @@ class Problem:
 
     # -- what is free --------------------------------------------------------------------------
     def _declare(self, model, shared):
-        prefixes = model.lobe_names() if self._is_sum else [model.name]
-        declared = []
-        for l, (prefix, lobe) in enumerate(zip(prefixes, self._lobes)):
-            for path, decl, value in _numeric(lobe):
-                declared.append(_Declared(f"{prefix}.{'.'.join(path)}", l, path, decl,
-                                          np.asarray(value, dtype=float), None))
+        declared = [_Declared(name, l, path, decl, np.asarray(value, dtype=float), None)
+                    for name, l, path, decl, value in _declarations(model)]
         names = [d.name for d in declared]
         shared_names = {resolve_name(s, names, "shared") for s in shared}
         self.shared = tuple(n for n in names if n in shared_names)

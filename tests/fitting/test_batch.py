@@ -36,6 +36,21 @@ def test_batch_fits_each_file_reports_the_bad_one_and_resumes(folder):
     assert summary["counts"]["failed"] == 2
 
 
+def _without_timing(path):
+    report = json.loads(path.read_text())
+    del report["timing"]
+    return report
+
+
+def test_two_local_processes_give_the_reports_of_one(folder):
+    one = brdf.batch(str(folder / "t*.csv"), SPEC, folder / "one", jobs=1)
+    two = brdf.batch(str(folder / "t*.csv"), SPEC, folder / "two", jobs=2)
+    assert [row["status"] for row in two.rows] == ["fitted", "fitted"] and two.ok
+    assert [row["file"] for row in two.rows] == [row["file"] for row in one.rows]
+    for name in ("t0.json", "t1.json"):
+        assert _without_timing(folder / "two" / name) == _without_timing(folder / "one" / name)
+
+
 def test_batch_runs_on_a_dask_cluster(folder):
     distributed = pytest.importorskip("dask.distributed")
     with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=1,

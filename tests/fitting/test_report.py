@@ -134,6 +134,31 @@ def test_compare_options_are_checked(table):
         brdf.compare(table, ["lambert", "ggx"], by="waic")
 
 
+def test_compare_applies_shared_and_fix_to_the_specs_that_have_them():
+    rgb = brdf.measure("lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.3)", "random:300",
+                       seed=2)
+    c = brdf.compare(rgb, ["lambert", "lambert + ggx(alpha=0.4, ks=0.5)",
+                             "lambert + beckmann(alpha=0.4, ks=0.5)"],
+                     shared=["ggx.ks"], fix={"ggx.alpha": 0.3, "lambert.albedo[1]": 0.4})
+    fits = {r["spec"]: f for r, f in zip(c.rows, c.results)}
+    ggx = fits["lambert + ggx(alpha=0.4, ks=0.5)"]
+    assert ggx.fixed == {"ggx.alpha": 0.3, "lambert.albedo[1]": 0.4}
+    assert "ggx.ks" in ggx.free and "ggx.ks[0]" not in ggx.free  # shared: one value for RGB
+    beckmann = fits["lambert + beckmann(alpha=0.4, ks=0.5)"]
+    assert beckmann.fixed == {"lambert.albedo[1]": 0.4} and "beckmann.alpha" in beckmann.free
+    assert "beckmann.ks[0]" in beckmann.free
+    assert fits["lambert"].fixed == {"lambert.albedo[1]": 0.4}
+
+
+@pytest.mark.parametrize("options", [{"shared": ["ward.alpha"]}, {"fix": {"beta": 1.0}}])
+def test_compare_refuses_a_name_that_no_spec_has(table, options):
+    with pytest.raises(InputError) as info:
+        brdf.compare(table, ["lambert", "lambert + ggx"], **options)
+    message = str(info.value)
+    assert "in all of the specs" in message and "ggx.alpha" in message
+    assert "lambert.albedo" in message and "\n" not in message
+
+
 def test_cli_compare_prints_the_ranking_and_writes_json(capsys, tmp_path, saved):
     data, _ = saved
     out_path = tmp_path / "cmp.json"

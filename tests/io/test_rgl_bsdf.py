@@ -14,6 +14,7 @@ from brdf.geometry import reflect, spherical_to_cartesian
 from brdf.io import rgl_bsdf
 from brdf.io.rgl_bsdf import RglTable
 from measured_data import measured, published_sha256
+from mitsuba_oracle import load_mitsuba, mitsuba_eval
 
 # descriptions as the README of ../shared/measured lists them
 MATERIALS = {
@@ -159,21 +160,7 @@ def test_albedo_of_paper_white_is_plausible():
 
 @pytest.fixture(scope="module")
 def mitsuba():
-    mi = pytest.importorskip("mitsuba", reason="Mitsuba 3 is the independent oracle")
-    mi.set_variant("scalar_rgb")
-    return mi
-
-
-def _mitsuba_eval(mi, bsdf, wi, wo):
-    """f_r cos(theta_o) from Mitsuba's BSDF.eval in the local frame, (n, 3)."""
-    ctx = mi.BSDFContext()
-    si = mi.SurfaceInteraction3f()
-    out = np.empty((len(wi), 3))
-    for k in range(len(wi)):
-        si.wi = mi.Vector3f(*wi[k])
-        v = bsdf.eval(ctx, si, mi.Vector3f(*wo[k]))
-        out[k] = [v[0], v[1], v[2]]
-    return out
+    return load_mitsuba()
 
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
@@ -182,7 +169,7 @@ def test_agrees_with_mitsuba_measured_plugin(mitsuba, name):
     t = rgl_bsdf.read(path)
     bsdf = mitsuba.load_dict({"type": "measured", "filename": str(path)})
     wi, wo = _pairs(11, 150)
-    ref = _mitsuba_eval(mitsuba, bsdf, wi, wo)  # Mitsuba's eval includes cos(theta_o)
+    ref = mitsuba_eval(mitsuba, bsdf, wi, wo)  # Mitsuba's eval includes cos(theta_o)
     ours = t.eval(wi, wo, clip=False) * wo[:, 2:]
     # Mitsuba computes in float32: relative 1e-3, and values 1e-4 of the largest as absolute
     np.testing.assert_allclose(ours, ref, rtol=1e-3, atol=1e-4 * np.abs(ref).max())

@@ -1,0 +1,72 @@
+"""``brdf-fit export`` and the ``--export`` option of ``brdf-fit fit``: a fitted model as a
+Mitsuba 3 BSDF or a glTF 2.0 material (the conversion is :func:`brdf.export`)."""
+
+#: Formats and their file extensions, as in brdf.fitting.export.FORMATS (not imported here:
+#: --help stays fast; a test keeps the two equal).
+FORMATS = {"mitsuba": ".xml", "gltf": ".gltf"}
+FORMAT_HELP = ("mitsuba (a Mitsuba 3 scene holding <bsdf id=\"material\">) or gltf (a glTF 2.0 "
+               "file with one metallic-roughness material)")
+
+
+def add_parser(sub, subcommand):
+    """Register ``export`` with ``subcommand`` (cli.main's helper for common options)."""
+    p = subcommand(sub, "export", run, "write a fitted model for Mitsuba 3 or glTF 2.0",
+                   "Convert the model of a JSON fit report (or a model spec) to a Mitsuba 3 BSDF "
+                   "or a glTF 2.0 metallic-roughness material. The file says, line by line, what "
+                   "maps to what and which parts are exact or approximate, with the largest "
+                   "relative difference between the two BRDFs. Models without an equivalent "
+                   "(phong, ward, lafortune, ...) are refused with the list of those that "
+                   "export. Exit status 1 when the conversion is approximate.",
+                   "print what was written as JSON")
+    p.add_argument("subject", metavar="REPORT|SPEC",
+                   help="a JSON fit report (brdf-fit fit -o) or a model spec")
+    p.add_argument("--format", required=True, choices=tuple(FORMATS), help=FORMAT_HELP)
+    p.add_argument("-o", "--output", required=True, metavar="PATH", help="the file to write")
+    p.add_argument("--force", action="store_true", help="replace PATH if it exists")
+
+
+def add_fit_options(p):
+    """``--export`` and ``--export-to`` of ``brdf-fit fit``."""
+    p.add_argument("--export", choices=tuple(FORMATS), metavar="FORMAT",
+                   help=f"also write the fitted model: {FORMAT_HELP}; to --export-to, or "
+                        "beside the -o report with the format's extension (.xml, .gltf); "
+                        "with --json its summary is under the key \"export\"")
+    p.add_argument("--export-to", metavar="PATH", help="where --export writes")
+
+
+def export_path(args):
+    """Where ``fit --export`` writes: ``--export-to``, or the report's path with the format's
+    extension; None without ``--export``."""
+    from pathlib import Path
+    from brdf.errors import InputError
+    if not args.export:
+        if args.export_to:
+            raise InputError("--export-to needs --export mitsuba|gltf")
+        return None
+    if args.export_to:
+        return args.export_to
+    if not args.output:
+        raise InputError("--export needs -o REPORT (the export goes beside it) or --export-to "
+                         "PATH")
+    return str(Path(args.output).with_suffix(FORMATS[args.export]))
+
+
+def run(args, out):
+    """Convert and write; exit 1 when the conversion is approximate."""
+    import brdf
+    from .commands import EXIT_CHECK_FAILED, EXIT_OK, load_subject, _refuse_existing
+    _refuse_existing(args, args.output)
+    model = load_subject(args.subject)
+    if not isinstance(model, brdf.models.Model):
+        raise brdf.InputError(f"{args.subject}: a measured table; export takes a fit report or "
+                              "a model spec (fit the table first: brdf-fit fit ... -o)")
+    result = brdf.export(model, args.format, args.output, force=args.force)
+    report(result, out, args.json)
+    return EXIT_OK if result.exact else EXIT_CHECK_FAILED
+
+
+def report(result, out, as_json):
+    if as_json:
+        out.json(result.to_dict())
+    else:
+        out.text(str(result))

@@ -1,0 +1,278 @@
+"""brdf.export: Mitsuba 3 files load in Mitsuba and evaluate like our models where exact (and
+like the stated equivalent where approximate); glTF materials follow the conversions stated and
+our evaluator of glTF's BRDF; models without an equivalent are one-line errors; files are
+written atomically and only replaced with force; the CLI."""
+
+import json
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+
+import brdf
+from brdf.errors import BRDFError, InputError, OutputError
+from brdf.fitting.export import EXPORTABLE, FORMATS, gltf_eval, relative_deviation
+from lobes import upper_directions
+from mitsuba_oracle import load_mitsuba, mitsuba_eval
+from test_cli import assert_one_error_line, run
+
+
+@pytest.fixture(scope="module")
+def mi():
+    return load_mitsuba()
+
+
+@pytest.fixture(scope="module")
+def pairs():
+    rng = np.random.default_rng(5)
+    return upper_directions(rng, 40), upper_directions(rng, 40)
+
+
+def mitsuba_bsdf(mi, text):
+    """The file loads as a scene; its ``<bsdf id="material">`` loads as a BSDF to evaluate."""
+    mi.load_string(text)
+    element = ET.fromstring(text).find("bsdf")
+    assert element.get("id") == "material"
+    element.set("version", "3.0.0")
+    return mi.load_string(ET.tostring(element, encoding="unicode"))
+
+
+def mitsuba_f(mi, bsdf, wi, wo):
+    """f_r (no cosine) from Mitsuba in our convention: our wo (viewer) is Mitsuba's si.wi, our
+    wi (light) its wo, whose cosine its eval includes."""
+    return mitsuba_eval(mi, bsdf, wo, wi) / wi[:, 2:]
+
+
+MITSUBA_EXACT = [
+    "lambert(albedo=[0.5,0.4,0.3])",
+    "ggx(ks=0.8, alpha=0.2, alpha_y=0.45)",
+    "ggx(ks=[0.9,0.8,0.7], alpha=0.3, fresnel=conductor(eta=[0.2,0.5,1.2], k=[3,2.5,2]))",
+    "ggx(alpha=0.25, fresnel=dielectric(eta=1.5))",
+    "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2)",
+    "lambert(albedo=0.2) + ggx(ks=0.3, alpha=0.4, fresnel=dielectric(eta=1.4)) "
+    "+ ggx(ks=0.2, alpha=0.1, alpha_y=0.3)",
+]
+
+
+@pytest.mark.parametrize("spec", MITSUBA_EXACT)
+def test_exact_mitsuba_exports_evaluate_like_our_model_in_mitsuba(mi, pairs, spec):
+    result = brdf.export(spec, "mitsuba")
+    assert result.exact and result.deviation <= 1e-9, result.notes
+    wi, wo = pairs
+    ours = np.broadcast_to(brdf.parse(spec).eval(wi, wo), (len(wi), 3))
+    theirs = mitsuba_f(mi, mitsuba_bsdf(mi, result.text), wi, wo)
+    # Mitsuba computes in float32
+    np.testing.assert_allclose(theirs, ours, rtol=2e-5, atol=1e-6 * ours.max())
+
+
+MITSUBA_APPROXIMATE = [
+    ("ggx(alpha=0.3, fresnel=schlick(f0=[0.9,0.6,0.3]))", "Schlick"),
+    ("ggx(alpha=0.3, alpha_y=0.1, masking=height-correlated)", "height-correlated"),
+    ("lambert(albedo=0.3) + ggx(ks=0.5, alpha=0.2, fresnel=schlick(f0=0.04))", "Schlick"),
+]
+
+
+@pytest.mark.parametrize("spec,cause", MITSUBA_APPROXIMATE)
+def test_approximate_mitsuba_exports_say_so_and_mitsuba_evaluates_the_stated_equivalent(
+        mi, pairs, spec, cause):
+    result = brdf.export(spec, "mitsuba")
+    assert not result.exact
+    assert any(cause in n and "approximate" in n for n in result.notes)
+    assert "APPROXIMATE" in result.text.split("-->")[0]
+    model = brdf.parse(spec)
+    assert result.deviation == pytest.approx(relative_deviation(model.eval,
+                                                                result.equivalent.eval))
+    # no exact Fresnel follows Schlick's curve at low F0 (24 % apart at F0 = 0.04, a few
+    # percent for metals); separable and height-correlated masking differ most at grazing
+    # (11 % at 80 degrees for the anisotropic lobe)
+    assert 1e-3 < result.deviation < 0.3
+    wi, wo = pairs
+    expected = np.broadcast_to(result.equivalent.eval(wi, wo), (len(wi), 3))
+    theirs = mitsuba_f(mi, mitsuba_bsdf(mi, result.text), wi, wo)
+    np.testing.assert_allclose(theirs, expected, rtol=2e-5, atol=1e-6 * expected.max())
+
+
+@pytest.mark.parametrize("spec", [
+    "beckmann(ks=[0.9,0.8,0.7], alpha=0.3, fresnel=conductor(eta=[0.2,0.5,1.2], k=[3,2.5,2]))",
+    "lambert(albedo=0.2) + beckmann(ks=0.3, alpha=0.15, alpha_y=0.5)",
+])
+def test_beckmann_in_mitsuba_is_within_the_stated_bound_of_its_rational_g1(mi, pairs, spec):
+    result = brdf.export(spec, "mitsuba")
+    assert not result.exact and any("Walter" in n for n in result.notes)
+    assert result.deviation == pytest.approx(1.00313 ** 2 - 1.0, rel=1e-3)
+    wi, wo = pairs
+    ours = np.broadcast_to(brdf.parse(spec).eval(wi, wo), (len(wi), 3))
+    theirs = mitsuba_f(mi, mitsuba_bsdf(mi, result.text), wi, wo)
+    err = np.abs(theirs - ours) - 2e-5 * ours - 1e-6 * ours.max()
+    assert np.all(err <= result.deviation * ours)
+    assert np.abs(theirs - ours).max() > 1e-4 * ours.max()  # the approximation does show
+
+
+def test_mirror_exports_as_a_conductor_with_the_same_reflectance(mi):
+    spec = "mirror(reflectance=[0.9,0.8,0.7], fresnel=conductor(eta=0.2, k=3))"
+    result = brdf.export(spec, "mitsuba")
+    assert result.exact
+    bsdf = mitsuba_bsdf(mi, result.text)
+    ctx, si = mi.BSDFContext(), mi.SurfaceInteraction3f()
+    model = brdf.parse(spec)
+    for theta in (0.0, 40.0, 75.0):
+        wi = brdf.geometry.directions_from_degrees(theta, 30.0)
+        si.wi = mi.Vector3f(*wi)
+        sample, weight = bsdf.sample(ctx, si, 0.5, mi.Point2f(0.5, 0.5))
+        assert np.allclose([sample.wo[0], sample.wo[1], sample.wo[2]], [-wi[0], -wi[1], wi[2]],
+                           atol=1e-6)
+        np.testing.assert_allclose([weight[0], weight[1], weight[2]], model.albedo(wi),
+                                   rtol=1e-5)
+
+
+def test_blend_weights_keep_each_reflectance_within_mitsuba_bounds():
+    result = brdf.export("lambert(albedo=[0.6,0.2,0.1]) + ggx(ks=0.3, alpha=0.2)", "mitsuba")
+    values = [float(v) for e in ET.fromstring(result.text).iter()
+              if e.get("name") in ("reflectance", "specular_reflectance")
+              for v in e.get("value").split(",")]
+    assert max(values) == pytest.approx(0.9) and min(values) > 0.0  # 0.6 + 0.3 spread over both
+
+
+def test_scales_beyond_mitsuba_reflectances_are_refused():
+    with pytest.raises(InputError) as info:
+        brdf.export("lambert(albedo=0.8) + ggx(ks=0.5, alpha=0.2)", "mitsuba")
+    assert "1.3 > 1" in str(info.value) and "[0, 1]" in str(info.value)
+
+
+# --- glTF ---------------------------------------------------------------------------------------
+
+GLTF_EXACT = [
+    "lambert(albedo=[0.5,0.4,0.3])",
+    "ggx(alpha=0.16, masking=height-correlated, fresnel=schlick(f0=[0.9,0.7,0.4]))",
+    "ggx(alpha=0.09, alpha_y=0.36, masking=height-correlated, fresnel=schlick(f0=0.5))",
+    "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2, masking=height-correlated)",
+    "ggx(ks=0.3, alpha=0.2, masking=height-correlated) + lambert(albedo=[0.5,0.4,0.3])",
+]
+
+
+@pytest.mark.parametrize("spec", GLTF_EXACT)
+def test_exact_gltf_exports_follow_gltfs_brdf(pairs, spec):
+    result = brdf.export(spec, "gltf")
+    assert result.exact, result.notes
+    wi, wo = pairs
+    material = json.loads(result.text)["materials"][0]
+    ours = np.broadcast_to(brdf.parse(spec).eval(wi, wo), (len(wi), 3))
+    np.testing.assert_allclose(gltf_eval(material, wi, wo), ours, rtol=1e-12, atol=1e-14)
+
+
+def test_gltf_file_is_minimal_valid_gltf_with_the_stated_conversion():
+    spec = "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2, fresnel=schlick(f0=0.04))"
+    document = json.loads(brdf.export(spec, "gltf").text)
+    assert document["asset"]["version"] == "2.0"
+    (material,) = document["materials"]
+    pbr = material["pbrMetallicRoughness"]
+    assert pbr["roughnessFactor"] == pytest.approx(math.sqrt(0.2))  # glTF alpha = roughness^2
+    assert pbr["metallicFactor"] == 0.0 and len(pbr["baseColorFactor"]) == 4
+    assert all(0.0 <= v <= 1.0 for v in pbr["baseColorFactor"])
+    assert set(document["extensionsUsed"]) == set(material["extensions"])
+    specular = material["extensions"]["KHR_materials_specular"]
+    assert specular["specularFactor"] == 0.3
+    assert np.allclose(np.multiply(specular["specularColorFactor"], 0.3), 0.3 * 0.04)
+    stated = material["extras"]["brdf"]
+    assert stated["exact"] is False and stated["spec"] == str(brdf.parse(spec))
+    assert any("approximate" in n and "diffuse" in n for n in stated["notes"])
+    assert 0.0 < stated["deviation"] < 0.2
+
+
+def test_a_metal_is_metallic_with_its_normal_reflectance_as_base_colour():
+    material = brdf.export("ggx(alpha=0.3, fresnel=conductor(eta=0.2, k=3))", "gltf").equivalent
+    f0 = ((0.2 - 1.0) ** 2 + 9.0) / ((0.2 + 1.0) ** 2 + 9.0)  # conductor F0 at normal incidence
+    pbr = material["pbrMetallicRoughness"]
+    assert pbr["metallicFactor"] == 1.0
+    assert pbr["baseColorFactor"][:3] == pytest.approx([f0] * 3)
+
+
+# --- refusals, files, CLI -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("spec,format", [
+    ("phong(ks=0.5, n=20)", "mitsuba"), ("ward(rho_s=0.2, alpha=0.1)", "mitsuba"),
+    ("lafortune", "mitsuba"), ("ashikhmin-shirley", "gltf"), ("blinn-phong", "gltf"),
+    ("lambert + modified-phong", "mitsuba"), ("lambert + beckmann", "gltf"),
+    ("mirror", "gltf"),
+])
+def test_models_without_an_equivalent_are_one_line_errors_naming_those_that_export(spec, format):
+    with pytest.raises(InputError) as info:
+        brdf.export(spec, format)
+    message = str(info.value)
+    assert "\n" not in message and f"no {format} equivalent" in message
+    assert ", ".join(EXPORTABLE[format]) in message
+
+
+def test_unknown_format_and_spectral_models_are_refused():
+    with pytest.raises(InputError, match="mitsuba, gltf"):
+        brdf.export("lambert", "usd")
+    with pytest.raises(InputError, match="4 channels"):
+        brdf.export("lambert(albedo=[0.1,0.2,0.3,0.4])", "mitsuba")
+
+
+def test_writes_atomically_and_replaces_only_with_force(tmp_path):
+    path = tmp_path / "paint.xml"
+    result = brdf.export("lambert(albedo=0.3)", "mitsuba", path)
+    assert result.path == str(path) and path.read_text(encoding="utf-8") == result.text
+    with pytest.raises(OutputError, match="exists"):
+        brdf.export("lambert(albedo=0.4)", "mitsuba", path)
+    brdf.export("lambert(albedo=0.4)", "mitsuba", path, force=True)
+    assert "0.4" in path.read_text() and sorted(p.name for p in tmp_path.iterdir()) == [
+        "paint.xml"]
+
+
+def test_cli_format_list_matches_the_library():
+    from brdf_cli.export import FORMATS as CLI_FORMATS
+    assert CLI_FORMATS == FORMATS
+
+
+@pytest.fixture()
+def report(tmp_path):
+    table = tmp_path / "plastic.csv"
+    brdf.write(brdf.measure("lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2)",
+                            "grid:15,30"), table)
+    return table
+
+
+def test_cli_fit_export_writes_beside_the_report_and_export_reads_the_report(capsys, report):
+    out_json = report.parent / "fit.json"
+    status, out, err = run(capsys, "fit", str(report), "lambert + ggx(alpha=0.4)", "--shared",
+                           "ks", "-o", str(out_json), "--export", "mitsuba")
+    assert status == 0 and err == "", err
+    xml = report.parent / "fit.xml"
+    assert "mitsuba export" in out and xml.exists()
+    assert brdf.load_report(out_json).spec in xml.read_text()
+    status, out, err = run(capsys, "export", str(out_json), "--format", "gltf", "-o",
+                           str(report.parent / "fit.gltf"), "--json")
+    assert status == 1 and err == ""  # the glTF conversion is approximate: exit status 1
+    d = json.loads(out)
+    assert d["exact"] is False and d["path"].endswith("fit.gltf")
+    status, _, err = run(capsys, "export", str(out_json), "--format", "gltf", "-o",
+                         str(report.parent / "fit.gltf"))
+    assert status == 2
+    assert_one_error_line(err, "fit.gltf", "exists", "--force")
+
+
+@pytest.mark.parametrize("argv,fragments", [
+    (["fit", "{table}", "lambert + phong", "-o", "{dir}/r.json", "--export", "mitsuba"],
+     ["no mitsuba equivalent", "lambert, ggx"]),
+    (["fit", "{table}", "lambert + ggx", "--export", "gltf"], ["--export needs -o"]),
+    (["export", "{table}", "--format", "gltf", "-o", "{dir}/x.gltf"], ["measured table"]),
+])
+def test_cli_export_errors_exit_2_before_any_work(capsys, report, argv, fragments):
+    argv = [a.format(table=report, dir=report.parent) for a in argv]
+    status, _, err = run(capsys, *argv)
+    assert status == 2
+    assert_one_error_line(err, *fragments)
+    assert sorted(p.name for p in report.parent.iterdir()) == ["plastic.csv"]
+
+
+def test_cli_fit_export_to_a_path_reports_it_under_export_in_json(capsys, report):
+    target = report.parent / "material.gltf"
+    status, out, err = run(capsys, "fit", str(report), "lambert + ggx(alpha=0.4)", "--json",
+                           "--export", "gltf", "--export-to", str(target))
+    assert status == 0 and err == "", err
+    d = json.loads(out)
+    assert d["export"]["path"] == str(target) and d["export"]["format"] == "gltf"
+    assert json.loads(target.read_text())["materials"][0]["extras"]["brdf"]["spec"] == d["spec"]
