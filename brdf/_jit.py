@@ -9,30 +9,35 @@ as an invalid sample, instead of raising, and the loops stay free of checks that
 numba keys a cached kernel on its own source file only, but our kernels inline functions from
 other modules of the package (a model's formula into the dispatcher), so an edit to one file
 could leave stale machine code behind. The cache locators below stamp every kernel of this
-package with a fingerprint of all its source files instead.
+package with a fingerprint of the source of all its kernel modules instead.
 """
 
 import hashlib
 import os
+import re
 
 import numba
 from numba.core import caching
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
-#: Subpackages that hold no kernels and that no kernel inlines from: editing them must not
-#: throw away every compiled kernel (a minute of recompiling on two cores).
-_WITHOUT_KERNELS = {"viz"}
+_KERNEL_MODULE = re.compile(rb"^from \.+_jit import|^import brdf\._jit", re.M)
 
 
 def _package_stamp():
+    """Hash of the source of every module that compiles kernels (imports this module) and of
+    this module: a kernel can only inline code from such modules. Modules without kernels
+    (plots, scenes, the demo, the command line) are left out, so editing them keeps the cache
+    (recompiling everything costs minutes on two cores)."""
     h = hashlib.sha256()
     for root, dirs, files in os.walk(_PACKAGE):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__" and not (
-            root == _PACKAGE and d in _WITHOUT_KERNELS))
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
         for name in sorted(f for f in files if f.endswith(".py")):
-            st = os.stat(os.path.join(root, name))
-            h.update(f"{root}/{name}:{st.st_mtime_ns}:{st.st_size};".encode())
+            path = os.path.join(root, name)
+            with open(path, "rb") as f:
+                source = f.read()
+            if path == os.path.abspath(__file__) or _KERNEL_MODULE.search(source):
+                h.update(os.path.relpath(path, _PACKAGE).encode() + b"\0" + source + b"\0")
     return h.hexdigest()
 
 

@@ -9,7 +9,7 @@ import argparse
 import sys
 import textwrap
 
-from . import arguments, commands, export, render
+from . import arguments, commands, demo, export, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -165,6 +165,7 @@ def build_parser():
     export.add_parser(sub, _subcommand)
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     viz_commands.add_parsers(sub, _subcommand)
+    demo.add_parser(sub, _subcommand)
     return parser
 
 

@@ -23,10 +23,12 @@ from ..errors import InputError
 from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Material, Mesh,
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
 from .scenes import BUILTIN, builtin, load
+from .validate import validate
 
 __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh", "box",
            "rectangle", "Material", "PointLight", "SpotLight", "DirectionalLight",
-           "GoniometricLight", "Environment", "builtin", "load", "BUILTIN", "STRATEGIES"]
+           "GoniometricLight", "Environment", "builtin", "load", "validate", "BUILTIN",
+           "STRATEGIES"]
 
 STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
 #: Pixels along a side of the square tiles that the threads share out.

@@ -1,0 +1,266 @@
+"""The main job end to end: ``brdf-fit demo`` / :func:`run`.
+
+On a bundled real measurement (RGL's white paper, a CC0 isotropic RGB table in
+``measurements/rgl``) and a MERL-size synthetic table made on the fly (a known model measured by
+the virtual gonioreflectometer with 2 % noise), it runs every stage the library offers:
+
+info -> physical checks -> nlopt fits of candidate models with the energy constraint ->
+comparison (BIC) -> emcee posterior of the best fit of the real data -> validation renders
+(measured versus fitted, false-colour difference, FLIP) -> 3-D lobes and 2-D plots ->
+``results/`` with the JSON reports, the images and one self-contained ``report.html``.
+"""
+
+import base64
+import html
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError, OutputError
+
+__all__ = ["run", "DATASETS", "CANDIDATES"]
+
+#: Candidate models fitted to each data set (BIC picks among them)
+CANDIDATES = ("lambert", "lambert + ggx", "lambert + beckmann")
+#: The synthetic material: its true model and the noise of its virtual measurement
+SYNTHETIC_TRUTH = "lambert(albedo=[0.35,0.2,0.1]) + ggx(alpha=0.18, ks=[0.5,0.5,0.5])"
+SYNTHETIC_NOISE = "relative:0.02"
+
+
+def _bundled(name):
+    """A file of the bundled measurements (the repository's measurements/ folder, installed
+    as the ``brdf_measurements`` package)."""
+    from importlib import resources
+    try:
+        path = Path(str(resources.files("brdf_measurements") / name))
+    except ModuleNotFoundError:
+        path = None
+    if path is None or not path.exists():
+        raise InputError(f"bundled measurement {name} not found: install brdf from its source "
+                         "tree (pip install .), which ships measurements/")
+    return path
+
+
+DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
+
+
+class _Stage:
+    """Times a stage and reports it on the progress line."""
+
+    def __init__(self, log, name):
+        self.log, self.name = log, name
+
+    def __enter__(self):
+        self.t = time.perf_counter()
+        self.log(f"{self.name} ...")
+        return self
+
+    def __exit__(self, *exc):
+        self.seconds = time.perf_counter() - self.t
+        if exc[0] is None:
+            self.log(f"{self.name}: {self.seconds:.1f} s")
+        return False
+
+
+def _prepare(outdir, force):
+    out = Path(outdir)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a folder")
+    if out.exists() and any(out.iterdir()) and not force:
+        raise OutputError(f"{out}: exists and is not empty; pass --force (force=True) to "
+                          "write into it")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def _write_json(path, doc):
+    from .io import atomic_output
+    from .properties import json_ready
+    with atomic_output(path, force=True) as tmp:
+        tmp.write_text(json.dumps(json_ready(doc), indent=2, allow_nan=False) + "\n",
+                       encoding="utf-8")
+
+
+def _subsample(table, n, seed):
+    """At most n random samples of a table (the posterior's likelihood runs over them)."""
+    from .table import Table
+    if len(table) <= n:
+        return table
+    idx = np.sort(np.random.default_rng(seed).choice(len(table), n, replace=False))
+    return Table(table.wi[idx], table.wo[idx], table.values[idx],
+                 sigma=None if table.sigma is None else table.sigma[idx],
+                 channel_names=table.channel_names, metadata=dict(table.metadata))
+
+
+def _datasets(seed, log):
+    import brdf
+    real = brdf.read(_bundled(DATASETS["paper-white"]))
+    log(f"synthetic MERL-size table of {SYNTHETIC_TRUTH}, noise {SYNTHETIC_NOISE}")
+    synth = brdf.measure(brdf.parse(SYNTHETIC_TRUTH), "merl", SYNTHETIC_NOISE, seed)
+    return {"paper-white": real, "synthetic-merl": synth}
+
+
+def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
+    """Run the demo into ``outdir``; returns the summary dictionary also written to
+    ``summary.json``. ``quick`` shrinks renders and chains (for tests); ``progress`` prints
+    one line per stage on stderr (default: when stderr is a terminal)."""
+    import sys
+    import brdf
+    from .render import builtin, render
+    from .render.image import false_colour, metrics, tonemap, write_png
+    from .viz import albedo_plot, inplane_plot, plot_lobes, residual_plot, save_figure, slice_plot
+    if progress is None:
+        progress = sys.stderr.isatty()
+    log = (lambda s: print(f"brdf-fit demo: {s}", file=sys.stderr)) if progress else (lambda s: None)
+    out = _prepare(outdir, force)
+    t_start = time.perf_counter()
+    size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
+    summary = {"seed": seed, "datasets": {}, "stages": {}}
+    with _Stage(log, "read and synthesise") as st:
+        data = _datasets(seed, log)
+    summary["stages"]["data"] = st.seconds
+    for name, table in data.items():
+        entry = summary["datasets"][name] = {"images": {}}
+        with _Stage(log, f"{name}: info and checks") as st:
+            entry["info"] = table.summary()
+            entry["check"] = brdf.check(table).to_dict()
+        with _Stage(log, f"{name}: fit {len(CANDIDATES)} models (energy constraint), compare"):
+            comparison = brdf.compare(table, list(CANDIDATES), by="bic", energy_constraint=True,
+                                      shared=["ks"] if name == "synthetic-merl" else [],
+                                      seed=seed)
+        _write_json(out / f"{name}-compare.json", comparison.to_dict())
+        entry["compare"] = comparison.to_dict()["models"]
+        best = comparison.best
+        _write_json(out / f"{name}-fit.json", best.to_dict())
+        entry["best"] = str(best.model)
+        if name == "paper-white":
+            with _Stage(log, f"{name}: emcee posterior of the best fit"):
+                # the chain runs on a random subset (the fit starts from the full fit's values)
+                post = brdf.mcmc(_subsample(table, 2000 if quick else 5000, seed),
+                                 str(best.model), seed=seed, max_steps=600 if quick else 6000,
+                                 progress=False)
+                post.corner(out / f"{name}-corner.png", force=True)
+                entry["posterior"] = post.to_dict()
+                entry["images"]["posterior (corner)"] = f"{name}-corner.png"
+        with _Stage(log, f"{name}: validation renders"):
+            images = {}
+            for label, material in (("measured", table), ("fitted", best.model)):
+                r = render(builtin("sphere", material), spp=spp, size=size, seed=seed)
+                r.save(out / f"{name}-{label}.exr", force=True)
+                write_png(out / f"{name}-{label}.png", tonemap(r.image), force=True)
+                images[label] = r.image
+                entry["images"][f"render: {label}"] = f"{name}-{label}.png"
+            m, flip_map = metrics(images["fitted"], images["measured"])
+            write_png(out / f"{name}-difference.png",
+                      false_colour(images["fitted"] - images["measured"]), force=True)
+            write_png(out / f"{name}-flip.png", flip_map, force=True)
+            entry["images"]["difference (red: fit brighter)"] = f"{name}-difference.png"
+            entry["images"]["FLIP error"] = f"{name}-flip.png"
+            entry["image_metrics"] = m
+        with _Stage(log, f"{name}: lobes and plots"):
+            plot_lobes(best.model, (30.0, 60.0), data=table, path=out / f"{name}-lobes.png",
+                       force=True)
+            entry["images"]["3-D lobes of the fit (measured samples as points)"] = \
+                f"{name}-lobes.png"
+            figures = {"in-plane": inplane_plot(best.model, data=table),
+                       "albedo": albedo_plot(best.model, table),
+                       "residuals": residual_plot(best.model, table)}
+            if name == "synthetic-merl":
+                figures["theta_h / theta_d slice"] = slice_plot(table)
+            for label, fig in figures.items():
+                path = f"{name}-{label.split()[0].replace('/', '')}.png"
+                save_figure(fig, out / path, force=True)
+                entry["images"][label] = path
+    summary["seconds"] = time.perf_counter() - t_start
+    _write_json(out / "summary.json", summary)
+    _write_report(out, summary)
+    log(f"done in {summary['seconds']:.0f} s: {out / 'report.html'}")
+    return summary
+
+
+# --- the HTML report --------------------------------------------------------------------------
+
+_STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}
+table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;
+text-align:right}th{background:#f3f3f3}td.l,th.l{text-align:left}figure{display:inline-block;
+margin:0.5em;vertical-align:top}figure img{max-width:340px;border:1px solid #ddd}
+figcaption{font-size:0.85em;color:#555}code{background:#f6f6f6}"""
+
+# counts the pictures that decoded, for a headless browser to read back (tests)
+_SCRIPT = """window.addEventListener('load',function(){var n=0,imgs=document.images;
+for(var i=0;i<imgs.length;i++){if(imgs[i].complete&&imgs[i].naturalWidth>0)n++;}
+document.body.setAttribute('data-images-loaded',n);
+document.body.setAttribute('data-images-total',imgs.length);});"""
+
+
+def _img(path):
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    return f'<img alt="{html.escape(Path(path).name)}" src="data:image/png;base64,{data}">'
+
+
+def _table(head, rows, left=1):
+    cls = lambda i: ' class="l"' if i < left else ""  # noqa: E731
+    h = "".join(f"<th{cls(i)}>{html.escape(str(c))}</th>" for i, c in enumerate(head))
+    b = "".join("<tr>" + "".join(f"<td{cls(i)}>{html.escape(str(c))}</td>"
+                                 for i, c in enumerate(r)) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{b}</table>"
+
+
+def _check_rows(check):
+    rows = []
+    for c in check["checks"]:
+        where = ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
+                          for k, v in (c.get("where") or {}).items() if v is not None)
+        worst = c.get("worst")
+        rows.append([c["name"], "n/a" if c.get("passed") is None else
+                     ("pass" if c["passed"] else "FAIL"),
+                     f"{worst:.4g}" if isinstance(worst, (int, float)) else "", where])
+    return rows
+
+
+def _write_report(out, summary):
+    from .io import atomic_output
+    parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>brdf demo report</title>",
+             f"<style>{_STYLE}</style><script>{_SCRIPT}</script></head><body>",
+             "<h1>brdf demo report</h1>",
+             f"<p>Seed {summary['seed']}; {summary['seconds']:.0f} s end to end. Every number "
+             "and picture below was made by this run; the JSON files beside this page hold "
+             "them in full.</p>"]
+    for name, e in summary["datasets"].items():
+        parts.append(f"<h2>{html.escape(name)}</h2>")
+        info = e["info"]
+        parts.append(_table(["property", "value"], [[k, info[k]] for k in info
+                                                    if not isinstance(info[k], (dict, list))]))
+        rows = _check_rows(e["check"])
+        if rows:
+            parts.append("<h3>Physical checks of the measurement</h3>")
+            parts.append(_table(["check", "verdict", "worst", "where"], rows))
+        parts.append("<h3>Model comparison (BIC, energy-constrained fits)</h3>")
+        parts.append(_table(["rank", "model", "k", "loss", "BIC", "dBIC", "weight", "checks"],
+                            [[i + 1, r["fitted"], r["k"], f"{r['loss']:.5g}", f"{r['bic']:.1f}",
+                              f"{r['delta']:.1f}", f"{r['weight']:.3f}",
+                              "pass" if r["checks_pass"] else "FAIL"]
+                             for i, r in enumerate(e["compare"])], left=2))
+        if "posterior" in e:
+            p = e["posterior"]
+            parts.append("<h3>Posterior of the best fit (emcee)</h3>")
+            parts.append(_table(["parameter", "median", "16 %", "84 %", "2.5 %", "97.5 %"],
+                                [[k] + [f"{v[q]:.4g}" for q in ("50", "16", "84", "2.5", "97.5")]
+                                 for k, v in p["percentiles"].items()]))
+            parts.append(f"<p>{html.escape(p['verdict'])}; acceptance "
+                         f"{p['acceptance_fraction']:.2f}, {p['walkers']} walkers x "
+                         f"{p['steps']} steps</p>")
+        m = e.get("image_metrics", {})
+        if m:
+            parts.append("<h3>Validation render: fitted against measured</h3>")
+            parts.append(_table(["RMSE", "relative MSE", "FLIP"],
+                                [[f"{m['rmse']:.4g}", f"{m['relmse']:.4g}",
+                                  f"{m.get('flip', float('nan')):.4g}"]], left=0))
+        for label, path in e["images"].items():
+            parts.append(f"<figure>{_img(out / path)}<figcaption>{html.escape(label)}"
+                         "</figcaption></figure>")
+    parts.append("</body></html>")
+    with atomic_output(out / "report.html", force=True) as tmp:
+        tmp.write_text("\n".join(parts), encoding="utf-8")
