@@ -266,10 +266,13 @@ class Problem:
         """Positions in the packed array of each entry of ``d`` (one per channel, or one for a
         scalar), found by packing the model with probe values: the fitter then follows each
         family's own layout (Fresnel terms pack a mode code first; an unset ``alpha_y`` mirrors
-        ``alpha``) without a second copy of it."""
+        ``alpha``) without a second copy of it. The probes lie a thousandth of the way from the
+        working values to odd points of the box: far into the box, a Lafortune coefficient with
+        the working exponent (n = 1000) would overflow and be rejected."""
         lo, hi = d.box
         n = d.value.size
-        probes = lo + (hi - lo) * (0.1234567 + 0.7 * np.arange(n) / max(n, 1))
+        odd = lo + (hi - lo) * (0.1234567 + 0.7 * np.arange(n) / max(n, 1))
+        probes = d.value.reshape(-1) + 1e-3 * (odd - d.value.reshape(-1))
         probe_model = self._build({d.name: probes.reshape(d.value.shape)})
         packed = probe_model.compile(self.channels).params
         changed = packed != self._packed
