@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import prange
 
-from .._jit import parallel_kernel
+from .._jit import inline_kernel, parallel_kernel
 from ..errors import InputError, ParameterError
 from ..models._kernels import lobe_eval, lobe_grad
 from ..models.base import Component, Param, Sum
@@ -433,10 +433,20 @@ class Problem:
         return self.loss_and_gradient(x)[1]
 
     def metrics(self, x):
-        """Every metric of :data:`brdf.fitting.losses.LOSSES` the data allow, at ``x``."""
+        """Every metric of :data:`brdf.fitting.losses.LOSSES` the data allow, at ``x``: the
+        model is evaluated once and each metric's terms score those values."""
+        from ..models._kernels import eval_array
         names = [n for n in losses.LOSSES if n != "chi-square" or self.samples.sigma is not None]
-        return {n: self.loss(x) if n == self.loss_name else float(self.channel_losses(
-            x, losses.terms(n, self.samples, len(self.free)))[0].sum()) for n in names}
+        s = self.samples
+        f = np.zeros(s.values.shape)
+        eval_array(self._kinds, self._offsets, self.packed(x)[0], self.channels, s.wi, s.wo, f)
+        out = {}
+        for name in names:
+            t = self.terms if name == self.loss_name else losses.terms(name, s, len(self.free))
+            sums = np.zeros((-(-len(f) // BLOCK), self.channels))
+            _score_sums(f, t.scale, t.target, t.weight, t.offset, BLOCK, sums)
+            out[name] = float(sums.sum(axis=0).sum() / t.norm)
+        return out
 
 
 @parallel_kernel
@@ -472,16 +482,34 @@ def _loss_sums(kinds, offs, params, lobes, nch, wi, wo, scale, target, weight, o
                 else:
                     f += base[l]
             for c in range(nch):
-                acc = 0.0
-                if offset > 0.0:
-                    for k in range(lo, hi):
-                        r = math.log(offset + scale[k, c] * f[k - lo, c]) - target[k, c]
-                        acc += weight[k] * r * r
-                else:
-                    for k in range(lo, hi):
-                        r = scale[k, c] * f[k - lo, c] - target[k, c]
-                        acc += weight[k] * r * r
-                out[b, j, c] = acc
+                out[b, j, c] = _block_score(f, lo, hi, c, scale, target, weight, offset)
+
+
+@inline_kernel
+def _block_score(f, lo, hi, c, scale, target, weight, offset):
+    """Sum over samples k in [lo, hi) of weight_k (g(scale_kc f_c) - target_kc)^2, with the block's
+    values ``f[k - lo, c]`` and g as in :func:`_loss_sums` (brdf.fitting.losses.Terms)."""
+    acc = 0.0
+    if offset > 0.0:
+        for k in range(lo, hi):
+            r = math.log(offset + scale[k, c] * f[k - lo, c]) - target[k, c]
+            acc += weight[k] * r * r
+    else:
+        for k in range(lo, hi):
+            r = scale[k, c] * f[k - lo, c] - target[k, c]
+            acc += weight[k] * r * r
+    return acc
+
+
+@parallel_kernel
+def _score_sums(f, scale, target, weight, offset, block, out):
+    """``out[b, c]``: the terms' sum over block b of model values ``f`` (n, C) computed before."""
+    n = f.shape[0]
+    for b in prange(out.shape[0]):
+        lo = b * block
+        hi = min(n, lo + block)
+        for c in range(f.shape[1]):
+            out[b, c] = _block_score(f[lo:hi], lo, hi, c, scale, target, weight, offset)
 
 
 @parallel_kernel

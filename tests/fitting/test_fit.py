@@ -154,6 +154,16 @@ def test_analytic_gradient_matches_differences_for_every_family(noisy_table, spe
         assert_gradient_matches_differences(Problem(noisy_table, spec, loss=loss), seed=i)
 
 
+def test_metrics_from_one_evaluation_agree_with_the_loss_passes(noisy_table):
+    p = Problem(noisy_table, OPTIONS[0][0], loss="log")
+    x = p.x0 + 0.2 * (p.random_x(np.random.default_rng(1), 1)[0] - p.x0)
+    metrics = p.metrics(x)
+    assert set(metrics) == set(losses.LOSSES)  # the table states sigma: chi-square too
+    for name, value in metrics.items():
+        terms = losses.terms(name, p.samples, len(p.free))
+        assert value == pytest.approx(float(p.channel_losses(x, terms)[0].sum()), rel=1e-12)
+
+
 # --- recovery ------------------------------------------------------------------------------------
 
 RECOVERY = [
