@@ -82,7 +82,8 @@ def _lobe(q, nch, ix, iy, iz, ox, oy, oz):
     _, _, hz, _ = half_unit(ix, iy, iz, ox, oy, oz)
     norm, norm_n = normalization_d(n, q[nch + 1])
     p = hz ** n
-    # d(N hz^n)/dn = N' hz^n + N hz^n ln(hz); hz^n = 0 where hz = 0, and so is the derivative
+    # Blinn 1977's cos^n times N, differentiated: d(N hz^n)/dn = N' hz^n + N hz^n ln(hz);
+    # hz^n = 0 where hz = 0, and so is the derivative
     return norm * p, (norm_n * p + norm * p * math.log(hz)) if p > 0.0 else 0.0
 
 

@@ -127,7 +127,7 @@ def ggx_root_d(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z),
     and its partial derivatives in alpha_x and alpha_y."""
     r = math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)
-    return r, ax * x * x / r, ay * y * y / r
+    return r, ax * x * x / r, ay * y * y / r  # the root of Heitz 2014, eq. 86, differentiated
 
 
 @inline_kernel
@@ -157,11 +157,12 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
         ro, ro_x, ro_y = ggx_root_d(ax, ay, ox, oy, oz)
         if separable:
             v = 1.0 / ((iz + ri) * (oz + ro))
+            # Walter et al. 2007, eq. 34 (G1 of each side) differentiated:
             # d ln v = -d root_i / (z_i + root_i) - d root_o / (z_o + root_o)
             return (v, -v * (ri_x / (iz + ri) + ro_x / (oz + ro)),
                     -v * (ri_y / (iz + ri) + ro_y / (oz + ro)))
         s = ri * oz + ro * iz
-        v = 0.5 / s
+        v = 0.5 / s  # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86); d ln v = -d s / s
         return v, -v * (ri_x * oz + ro_x * iz) / s, -v * (ri_y * oz + ro_y * iz) / s
     li, li_x, li_y = smith_lambda_d(dist, ax, ay, ix, iy, iz)
     lo, lo_x, lo_y = smith_lambda_d(dist, ax, ay, ox, oy, oz)

@@ -100,7 +100,8 @@ def _lobe(form, q, nch, ix, iy, iz, ox, oy, oz):
     else:
         scale = (n + 2.0) / (2.0 * math.pi)  # Lafortune & Willems 1994, sec. 3
         scale_n = 1.0 / (2.0 * math.pi)
-    # d(scale ca^n)/dn = scale' ca^n + scale ca^n ln(ca)
+    # Lafortune & Willems 1994, sec. 3, differentiated: d(scale ca^n)/dn = scale' ca^n
+    # + scale ca^n ln(ca)
     return scale * p, scale_n * p + scale * p * math.log(ca)
 
 
