@@ -434,7 +434,7 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
     loss : str
         A metric of :data:`brdf.fitting.losses.LOSSES` (default ``cosine-l2``).
     optimizer : str
-        A key of :data:`OPTIMIZERS`: LD_LBFGS, LD_SLSQP (gradients by central differences,
+        A key of :data:`OPTIMIZERS`: LD_LBFGS, LD_SLSQP (analytic gradients,
         see :class:`~brdf.fitting.problem.Problem`), LN_BOBYQA, LN_NELDERMEAD, LN_COBYLA
         (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL (global, then polished).
     starts : int

@@ -5,6 +5,10 @@ A model reaches the kernels as ``(kinds, offsets, params, nch)`` (see ``Model.co
 Every family module provides scalar kernels with these signatures (wi, wo in the local frame):
 
 - ``eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)``: add f(wi, wo) to ``out[k, :nch]``;
+- ``grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)``: the same, and set ``d[j, k, c]`` to the
+  analytic df_c / dq[j] for the packed parameters f depends on (fitting's gradients). ``eval_``
+  and ``grad_`` take f from one function of the family that returns the formula's value with
+  its partial derivatives (LLVM drops the derivatives from ``eval_``), so they cannot drift;
 - ``sample_(q, nch, ix, iy, iz, u1, u2) -> (ox, oy, oz, pdf)``: pdf 0 marks an invalid sample;
 - ``pdf_(q, nch, ix, iy, iz, ox, oy, oz) -> pdf`` (solid angle, 0 below the horizon);
 - ``hint_(q, nch, ix, iy, iz) -> float``: a cheap estimate of the albedo (channel mean), used only
@@ -49,6 +53,31 @@ def lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k):
         lafortune.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
     elif kind == K.ASHIKHMIN_SHIRLEY:
         ashikhmin_shirley.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
+
+
+@inline_kernel
+def lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f(wi, wo) to ``out[k, :nch]`` and set ``d[j, k, c]`` to df_c / dq[j] for each packed
+    parameter q[j] that f depends on; other entries of ``d`` are left alone (the caller zeroes
+    them once). A mirror's eval is 0, and so are its derivatives."""
+    if kind == K.LAMBERT:
+        lambert.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.GGX:
+        microfacet.grad_(microfacet.GGX, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.BECKMANN:
+        microfacet.grad_(microfacet.BECKMANN, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.PHONG:
+        phong.grad_(phong.ORIGINAL, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.MODIFIED_PHONG:
+        phong.grad_(phong.MODIFIED, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.BLINN_PHONG:
+        blinn_phong.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.WARD:
+        ward.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.LAFORTUNE:
+        lafortune.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+    elif kind == K.ASHIKHMIN_SHIRLEY:
+        ashikhmin_shirley.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
 
 
 @kernel
@@ -286,6 +315,17 @@ def eval_array(kinds, offs, p, nch, wi, wo, out):
             if fold:
                 lambert.eval_(diffuse, nch, ix, iy, iz, ox, oy, oz, out, k)
             lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k)
+
+
+@parallel_kernel
+def grad_array(kinds, offs, p, nch, wi, wo, out, d):
+    """Add f(wi, wo) to ``out`` (n, C) and set ``d[j, k, c]`` (P, n, C), zeroed by the caller, to
+    df_c / dp[j] at pair k for every packed parameter p[j] (0 for choice codes)."""
+    for k in prange(wi.shape[0]):
+        ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]
+        for l in range(kinds.shape[0]):
+            lobe_grad(kinds[l], p[offs[l]:offs[l + 1]], nch, ix, iy, iz, ox, oy, oz, out, k,
+                      d[offs[l]:offs[l + 1]])
 
 
 @parallel_kernel

@@ -16,7 +16,7 @@ from ..sampling import half_unit, reflect_about, square_to_cosine_hemisphere
 from . import _kinds, lambert
 from ._registry import register
 from .base import Model, Param
-from .fresnel import schlick
+from .fresnel import schlick, schlick_d
 
 INV_PI = 1.0 / math.pi
 DIFFUSE_NORM = 28.0 / (23.0 * math.pi)  # Ashikhmin & Shirley 2000, eq. 5
@@ -59,21 +59,33 @@ def diffuse_factor(cos):
 
 
 @inline_kernel
-def half_exponent(nu, nv, hx, hy):
-    """nu cos^2 phi_h + nv sin^2 phi_h (eq. 4); any value at h = n, where (n.h)^e = 1."""
+def half_exponent_d(nu, nv, hx, hy):
+    """nu cos^2 phi_h + nv sin^2 phi_h (eq. 4), any value at h = n, where (n.h)^e = 1, and its
+    derivatives cos^2 phi_h in nu and sin^2 phi_h in nv."""
     s2 = hx * hx + hy * hy
     if s2 <= 0.0:
-        return nu
-    return (nu * hx * hx + nv * hy * hy) / s2
+        return nu, 1.0, 0.0
+    cx = hx * hx / s2
+    cy = hy * hy / s2
+    return nu * cx + nv * cy, cx, cy
+
+
+@inline_kernel
+def half_pdf_d(nu, nv, hx, hy, hz):
+    """Density of the half vector in solid angle (eq. 8) and its derivatives in nu and nv:
+    d ln p_h / d nu = 1 / (2 (nu + 1)) + ln(n.h) de/dnu, likewise nv."""
+    if hz <= 0.0:
+        return 0.0, 0.0, 0.0
+    e, e_u, e_v = half_exponent_d(nu, nv, hx, hy)
+    p = math.sqrt((nu + 1.0) * (nv + 1.0)) / (2.0 * math.pi) * hz ** e
+    lh = math.log(hz)
+    return p, p * (0.5 / (nu + 1.0) + lh * e_u), p * (0.5 / (nv + 1.0) + lh * e_v)
 
 
 @inline_kernel
 def half_pdf(nu, nv, hx, hy, hz):
     """Density of the half vector in solid angle (eq. 8)."""
-    if hz <= 0.0:
-        return 0.0
-    e = half_exponent(nu, nv, hx, hy)
-    return math.sqrt((nu + 1.0) * (nv + 1.0)) / (2.0 * math.pi) * hz ** e
+    return half_pdf_d(nu, nv, hx, hy, hz)[0]
 
 
 @kernel
@@ -122,18 +134,43 @@ def specular_weight(q, nch, iz):
 
 
 @inline_kernel
-def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
+def _lobe(q, nch, ix, iy, iz, ox, oy, oz):
+    """The channel-free factors of f: the specular term without F, its derivatives in nu and
+    nv, the diffuse term without rd (1 - rs), and k.h (all 0 below the horizon)."""
     if iz <= 0.0 or oz <= 0.0:
-        return
+        return 0.0, 0.0, 0.0, 0.0, 1.0
     nu = q[2 * nch]
     nv = q[2 * nch + 1]
     hx, hy, hz, kh = half_unit(ix, iy, iz, ox, oy, oz)
     # eq. 4 without F: p_h(h) / (4 (k.h) max(cos_i, cos_o)), p_h from eq. 8
-    spec = half_pdf(nu, nv, hx, hy, hz) / (4.0 * kh * max(iz, oz))
+    p, p_u, p_v = half_pdf_d(nu, nv, hx, hy, hz)
+    w = 1.0 / (4.0 * kh * max(iz, oz))
     diff = DIFFUSE_NORM * diffuse_factor(iz) * diffuse_factor(oz)  # eq. 5 without rd (1 - rs)
+    return p * w, p_u * w, p_v * w, diff, kh
+
+
+@inline_kernel
+def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    spec, _, _, diff, kh = _lobe(q, nch, ix, iy, iz, ox, oy, oz)
     for c in range(nch):
         rs = q[nch + c]
         out[k, c] += spec * schlick(rs, kh) + diff * q[c] * (1.0 - rs)
+
+
+@inline_kernel
+def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f (eqs. 4-5) to ``out[k]`` and its derivatives into ``d``: in rd, d(rd (1 - rs) f_d);
+    in rs, the specular term times dF/dF0 minus rd f_d; in nu and nv through eq. 8."""
+    spec, spec_u, spec_v, diff, kh = _lobe(q, nch, ix, iy, iz, ox, oy, oz)
+    for c in range(nch):
+        rd = q[c]
+        rs = q[nch + c]
+        f, f_rs = schlick_d(rs, kh)
+        out[k, c] += spec * f + diff * rd * (1.0 - rs)
+        d[c, k, c] = diff * (1.0 - rs)
+        d[nch + c, k, c] = spec * f_rs - diff * rd
+        d[2 * nch, k, c] = spec_u * f
+        d[2 * nch + 1, k, c] = spec_v * f
 
 
 @kernel

@@ -56,22 +56,52 @@ class BlinnPhong(Model):
 # --- lobe kernels (layout: ks[C], n, normalization) ------------------------------------------
 
 @inline_kernel
+def normalization_d(n, which):
+    """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``),
+    and dN/dn."""
+    if which == APPROX:
+        return (n + 8.0) / (8.0 * math.pi), 1.0 / (8.0 * math.pi)  # Real-Time Rendering 3rd ed. 7.6
+    p = 2.0 ** (-0.5 * n)
+    v = (n + 2.0) * (n + 4.0) / (8.0 * math.pi * (p + n))  # Giesen 2009
+    # Giesen 2009 differentiated: d ln N / dn = 1/(n+2) + 1/(n+4) - (1 - p ln(2) / 2) / (p + n)
+    return v, v * (1.0 / (n + 2.0) + 1.0 / (n + 4.0) - (1.0 - 0.5 * math.log(2.0) * p) / (p + n))
+
+
+@inline_kernel
 def normalization(n, which):
     """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``)."""
-    if which == APPROX:
-        return (n + 8.0) / (8.0 * math.pi)  # Real-Time Rendering 3rd ed., section 7.6
-    return (n + 2.0) * (n + 4.0) / (8.0 * math.pi * (2.0 ** (-0.5 * n) + n))  # Giesen 2009
+    return normalization_d(n, which)[0]
+
+
+@inline_kernel
+def _lobe(q, nch, ix, iy, iz, ox, oy, oz):
+    """f per unit ks, N(n) cos^n(theta_h), and its derivative in n (0 below the horizon)."""
+    if iz <= 0.0 or oz <= 0.0:
+        return 0.0, 0.0
+    n = q[nch]
+    _, _, hz, _ = half_unit(ix, iy, iz, ox, oy, oz)
+    norm, norm_n = normalization_d(n, q[nch + 1])
+    p = hz ** n
+    # Blinn 1977's cos^n times N, differentiated: d(N hz^n)/dn = N' hz^n + N hz^n ln(hz);
+    # hz^n = 0 where hz = 0, and so is the derivative
+    return norm * p, (norm_n * p + norm * p * math.log(hz)) if p > 0.0 else 0.0
 
 
 @inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    if iz <= 0.0 or oz <= 0.0:
-        return
-    n = q[nch]
-    _, _, hz, _ = half_unit(ix, iy, iz, ox, oy, oz)
-    v = normalization(n, q[nch + 1]) * hz ** n
+    v, _ = _lobe(q, nch, ix, iy, iz, ox, oy, oz)
     for c in range(nch):
         out[k, c] += q[c] * v
+
+
+@inline_kernel
+def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f = ks N(n) cos^n(theta_h) to ``out[k]``; its derivatives in ks and n into ``d``."""
+    v, v_n = _lobe(q, nch, ix, iy, iz, ox, oy, oz)
+    for c in range(nch):
+        out[k, c] += q[c] * v
+        d[c, k, c] = v
+        d[nch, k, c] = q[c] * v_n
 
 
 @kernel

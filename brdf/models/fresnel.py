@@ -68,54 +68,109 @@ class Conductor(Fresnel):
 
 
 @inline_kernel
-def schlick(f0, cos_i):
-    """Schlick 1994, "An Inexpensive BRDF Model for Physically-based Rendering", eq. 15."""
+def schlick_d(f0, cos_i):
+    """Schlick's F and dF/dF0 = 1 - (1 - cos)^5 (Schlick 1994, "An Inexpensive BRDF Model for
+    Physically-based Rendering", eq. 15, differentiated)."""
     m = 1.0 - cos_i
     m2 = m * m
-    return f0 + (1.0 - f0) * m2 * m2 * m
+    m5 = m2 * m2 * m
+    return f0 + (1.0 - f0) * m5, 1.0 - m5
+
+
+@inline_kernel
+def schlick(f0, cos_i):
+    """Schlick 1994, "An Inexpensive BRDF Model for Physically-based Rendering", eq. 15."""
+    return schlick_d(f0, cos_i)[0]
+
+
+@inline_kernel
+def dielectric_reflectance_d(cos_i, eta):
+    """F and dF/deta of Walter et al. 2007, eq. 22 (total internal reflection gives 1, dF 0).
+
+    With g = sqrt(eta^2 - 1 + c^2), A = (g - c) / (g + c) and B = (c (g + c) - 1) / (c (g - c) + 1),
+    F = A^2 (1 + B^2) / 2, dA/dg = 2 c / (g + c)^2, dB/dg = 2 c (1 - c^2) / (c (g - c) + 1)^2 and
+    dg/deta = eta / g.
+    """
+    c = abs(cos_i)
+    g2 = eta * eta - 1.0 + c * c
+    if g2 <= 0.0:
+        return 1.0, 0.0
+    g = math.sqrt(g2)
+    a = (g - c) / (g + c)
+    den = c * (g - c) + 1.0
+    b = (c * (g + c) - 1.0) / den
+    da = 2.0 * c / ((g + c) * (g + c))
+    db = 2.0 * c * (1.0 - c * c) / (den * den)
+    return 0.5 * a * a * (1.0 + b * b), (a * da * (1.0 + b * b) + a * a * b * db) * eta / g
 
 
 @inline_kernel
 def dielectric_reflectance(cos_i, eta):
     """Walter et al. 2007, eq. 22 (total internal reflection gives 1)."""
-    c = abs(cos_i)
-    g2 = eta * eta - 1.0 + c * c
-    if g2 <= 0.0:
-        return 1.0
-    g = math.sqrt(g2)
-    a = (g - c) / (g + c)
-    b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-    return 0.5 * a * a * (1.0 + b * b)
+    return dielectric_reflectance_d(cos_i, eta)[0]
+
+
+@inline_kernel
+def conductor_reflectance_d(cos_i, eta, k):
+    """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor) and its
+    partial derivatives in eta and k, by differentiating each intermediate of that formula
+    (forward mode, one tangent per parameter: ``_e`` in eta, ``_k`` in k)."""
+    c = min(abs(cos_i), 1.0)
+    c2 = c * c
+    s2 = 1.0 - c2
+    t0 = eta * eta - k * k - s2
+    t0_e, t0_k = 2.0 * eta, -2.0 * k
+    a2b2 = math.sqrt(t0 * t0 + 4.0 * eta * eta * k * k)
+    inv = 1.0 / a2b2 if a2b2 > 0.0 else 0.0
+    a2b2_e = (t0 * t0_e + 4.0 * eta * k * k) * inv
+    a2b2_k = (t0 * t0_k + 4.0 * eta * eta * k) * inv
+    a = math.sqrt(max(0.0, 0.5 * (a2b2 + t0)))
+    inv = 0.25 / a if a > 0.0 else 0.0
+    a_e, a_k = (a2b2_e + t0_e) * inv, (a2b2_k + t0_k) * inv
+    t1 = a2b2 + c2
+    t2 = 2.0 * a * c
+    rs = (t1 - t2) / (t1 + t2)
+    # d((t1 - t2) / (t1 + t2)) = 2 (t2 dt1 - t1 dt2) / (t1 + t2)^2, with dt1 = da2b2, dt2 = 2 c da
+    w = 2.0 / ((t1 + t2) * (t1 + t2))
+    rs_e = w * (t2 * a2b2_e - t1 * 2.0 * c * a_e)
+    rs_k = w * (t2 * a2b2_k - t1 * 2.0 * c * a_k)
+    t3 = c2 * a2b2 + s2 * s2
+    t4 = t2 * s2
+    ratio = (t3 - t4) / (t3 + t4)
+    # the same rule for (t3 - t4) / (t3 + t4), with dt3 = c^2 da2b2 and dt4 = 2 c s^2 da
+    w = 2.0 / ((t3 + t4) * (t3 + t4))
+    ratio_e = w * (t4 * c2 * a2b2_e - t3 * 2.0 * c * s2 * a_e)
+    ratio_k = w * (t4 * c2 * a2b2_k - t3 * 2.0 * c * s2 * a_k)
+    rp = rs * ratio
+    return (0.5 * (rp + rs), 0.5 * (rs_e * ratio + rs * ratio_e + rs_e),
+            0.5 * (rs_k * ratio + rs * ratio_k + rs_k))
 
 
 @inline_kernel
 def conductor_reflectance(cos_i, eta, k):
     """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor)."""
-    c = min(abs(cos_i), 1.0)
-    c2 = c * c
-    s2 = 1.0 - c2
-    t0 = eta * eta - k * k - s2
-    a2b2 = math.sqrt(t0 * t0 + 4.0 * eta * eta * k * k)
-    a = math.sqrt(max(0.0, 0.5 * (a2b2 + t0)))
-    t1 = a2b2 + c2
-    t2 = 2.0 * a * c
-    rs = (t1 - t2) / (t1 + t2)
-    t3 = c2 * a2b2 + s2 * s2
-    t4 = t2 * s2
-    rp = rs * (t3 - t4) / (t3 + t4)
-    return 0.5 * (rp + rs)
+    return conductor_reflectance_d(cos_i, eta, k)[0]
+
+
+@inline_kernel
+def fresnel_d(q, off, nch, ch, cos_d):
+    """Reflectance of the Fresnel block at ``q[off:]`` for channel ``ch`` at cosine ``cos_d``,
+    and its partial derivatives in the block's two parameters of that channel,
+    ``q[off + 1 + ch]`` and ``q[off + 1 + nch + ch]`` (0 for those a term does not use)."""
+    mode = q[off]
+    a = q[off + 1 + ch]
+    if mode == SCHLICK:
+        f, f_a = schlick_d(a, cos_d)
+        return f, f_a, 0.0
+    if mode == DIELECTRIC:
+        f, f_a = dielectric_reflectance_d(cos_d, a)
+        return f, f_a, 0.0
+    if mode == CONDUCTOR:
+        return conductor_reflectance_d(cos_d, a, q[off + 1 + nch + ch])
+    return 1.0, 0.0, 0.0
 
 
 @inline_kernel
 def fresnel(q, off, nch, ch, cos_d):
     """Reflectance of the Fresnel block at ``q[off:]`` for channel ``ch`` at cosine ``cos_d``."""
-    mode = q[off]
-    a = q[off + 1 + ch]
-    if mode == SCHLICK:
-        return schlick(a, cos_d)
-    if mode == DIELECTRIC:
-        return dielectric_reflectance(cos_d, a)
-    if mode == CONDUCTOR:
-        return conductor_reflectance(cos_d, a, q[off + 1 + nch + ch])
-    return 1.0
-
+    return fresnel_d(q, off, nch, ch, cos_d)[0]

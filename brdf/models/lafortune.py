@@ -93,14 +93,38 @@ def _axis(q, nch, ix, iy, iz):
 
 
 @inline_kernel
+def _channel(q, nch, c, px, py, pz):
+    """The lobe's dot product Cx px + Cy py + Cz pz of channel c (Lafortune et al. 1997, eq. 4)
+    and its power f = max(0, dot)^n."""
+    dot = q[c] * px + q[nch + c] * py + q[2 * nch + c] * pz
+    return dot, dot ** q[3 * nch + c] if dot > 0.0 else 0.0
+
+
+@inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
     if iz <= 0.0 or oz <= 0.0:
         return
     px, py, pz = ix * ox, iy * oy, iz * oz
     for c in range(nch):
-        d = q[c] * px + q[nch + c] * py + q[2 * nch + c] * pz  # Lafortune et al. 1997, eq. 4
-        if d > 0.0:
-            out[k, c] += d ** q[3 * nch + c]
+        out[k, c] += _channel(q, nch, c, px, py, pz)[1]
+
+
+@inline_kernel
+def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f = max(0, dot)^n (eq. 4) to ``out[k]`` and its derivatives into ``d``:
+    df/dC_x = n dot^(n-1) wi_x wo_x (likewise y, z) and df/dn = dot^n ln(dot), 0 where dot <= 0."""
+    above = iz > 0.0 and oz > 0.0
+    px, py, pz = ix * ox, iy * oy, iz * oz
+    for c in range(nch):
+        dot, f = _channel(q, nch, c, px, py, pz)
+        live = above and f > 0.0
+        f = f if live else 0.0
+        slope = q[3 * nch + c] * f / dot if live else 0.0  # n dot^(n-1)
+        out[k, c] += f
+        d[c, k, c] = slope * px
+        d[nch + c, k, c] = slope * py
+        d[2 * nch + c, k, c] = slope * pz
+        d[3 * nch + c, k, c] = f * math.log(dot) if live else 0.0
 
 
 @kernel

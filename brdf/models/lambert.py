@@ -27,10 +27,25 @@ class Lambert(Model):
 
 
 @inline_kernel
+def _lobe(iz, oz):
+    """f per unit albedo: 1 / pi above the horizon (a select keeps the array loop vectorised)."""
+    return INV_PI if (iz > 0.0 and oz > 0.0) else 0.0
+
+
+@inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    v = INV_PI if (iz > 0.0 and oz > 0.0) else 0.0  # a select keeps the array loop vectorised
+    v = _lobe(iz, oz)
     for c in range(nch):
         out[k, c] += q[c] * v  # f = rho / pi
+
+
+@inline_kernel
+def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f to ``out[k, :nch]``, set ``d[c, k, c]`` = df_c / drho_c = 1 / pi (f = rho / pi)."""
+    v = _lobe(iz, oz)
+    for c in range(nch):
+        out[k, c] += q[c] * v
+        d[c, k, c] = v
 
 
 @kernel

@@ -17,7 +17,7 @@ from ..sampling import reflect_about
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Choice, Model, Nested, Param
-from .fresnel import NONE, fresnel
+from .fresnel import NONE, fresnel, fresnel_d
 
 GGX, BECKMANN = 0, 1
 SQRT_PI = math.sqrt(math.pi)
@@ -73,34 +73,67 @@ class BeckmannModel(Microfacet):
 # --- distributions ---------------------------------------------------------------------------
 
 @inline_kernel
-def ndf(dist, ax, ay, hx, hy, hz):
-    """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
+def ndf_d(dist, ax, ay, hx, hy, hz):
+    """Normal distribution D(h) in 1/sr (integral of D cos = 1) and its partial derivatives in
+    alpha_x and alpha_y; h need not be normalised."""
     hh = hx * hx + hy * hy + hz * hz
     sx = hx / ax
     sy = hy / ay
     if dist == GGX:
         t = sx * sx + sy * sy + hz * hz
-        return hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
+        d = hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
+        # eq. 85 differentiated: d ln D / d alpha_x = (4 s_x^2 / t - 1) / alpha_x
+        return d, d * (4.0 * sx * sx / t - 1.0) / ax, d * (4.0 * sy * sy / t - 1.0) / ay
     hz2 = hz * hz
-    return math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+    d = math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+    # eq. 84 differentiated: d ln D / d alpha_x = (2 s_x^2 / h_z^2 - 1) / alpha_x
+    return d, d * (2.0 * sx * sx / hz2 - 1.0) / ax, d * (2.0 * sy * sy / hz2 - 1.0) / ay
+
+
+@inline_kernel
+def ndf(dist, ax, ay, hx, hy, hz):
+    """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
+    return ndf_d(dist, ax, ay, hx, hy, hz)[0]
+
+
+@inline_kernel
+def smith_lambda_d(dist, ax, ay, x, y, z):
+    """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX) and
+    its partial derivatives in alpha_x and alpha_y."""
+    a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
+    z2 = z * z
+    if dist == GGX:
+        root = math.sqrt(1.0 + a2t2)
+        # eq. 86 differentiated through a2t2: dLambda/da2t2 = 1 / (4 root)
+        w = 0.5 / (root * z2)
+        return 0.5 * (root - 1.0), w * ax * x * x, w * ay * y * y
+    if a2t2 <= 0.0:
+        return 0.0, 0.0, 0.0
+    a = 1.0 / math.sqrt(a2t2)
+    e = math.exp(-a * a)
+    # eq. 83 differentiated: dLambda/da = -exp(-a^2) / (2 sqrt(pi) a^2), da/da2t2 = -a^3 / 2
+    w = e * a / (2.0 * SQRT_PI * z2)
+    return 0.5 * (math.erf(a) - 1.0) + e / (2.0 * a * SQRT_PI), w * ax * x * x, w * ay * y * y
 
 
 @inline_kernel
 def smith_lambda(dist, ax, ay, x, y, z):
     """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
-    a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
-    if dist == GGX:
-        return 0.5 * (math.sqrt(1.0 + a2t2) - 1.0)
-    if a2t2 <= 0.0:
-        return 0.0
-    a = 1.0 / math.sqrt(a2t2)
-    return 0.5 * (math.erf(a) - 1.0) + math.exp(-a * a) / (2.0 * a * SQRT_PI)
+    return smith_lambda_d(dist, ax, ay, x, y, z)[0]
+
+
+@inline_kernel
+def ggx_root_d(ax, ay, x, y, z):
+    """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z),
+    and its partial derivatives in alpha_x and alpha_y."""
+    r = math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)
+    return r, ax * x * x / r, ay * y * y / r  # the root of Heitz 2014, eq. 86, differentiated
 
 
 @inline_kernel
 def ggx_root(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z)."""
-    return math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)
+    return ggx_root_d(ax, ay, x, y, z)[0]
 
 
 @kernel
@@ -112,22 +145,40 @@ def g1(dist, ax, ay, x, y, z):
 
 
 @inline_kernel
-def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
-    """G2 / (4 cos_i cos_o) for directions above the horizon.
+def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
+    """G2 / (4 cos_i cos_o) for directions above the horizon, and its partial derivatives in
+    alpha_x and alpha_y.
 
     For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
     1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
     """
     if dist == GGX:
-        ri = ggx_root(ax, ay, ix, iy, iz)
-        ro = ggx_root(ax, ay, ox, oy, oz)
+        ri, ri_x, ri_y = ggx_root_d(ax, ay, ix, iy, iz)
+        ro, ro_x, ro_y = ggx_root_d(ax, ay, ox, oy, oz)
         if separable:
-            return 1.0 / ((iz + ri) * (oz + ro))
-        return 0.5 / (ri * oz + ro * iz)
-    li = smith_lambda(dist, ax, ay, ix, iy, iz)
-    lo = smith_lambda(dist, ax, ay, ox, oy, oz)
-    g2 = 1.0 / ((1.0 + li) * (1.0 + lo)) if separable else 1.0 / (1.0 + li + lo)  # eq. 98, 99
-    return g2 / (4.0 * iz * oz)
+            v = 1.0 / ((iz + ri) * (oz + ro))
+            # Walter et al. 2007, eq. 34 (G1 of each side) differentiated:
+            # d ln v = -d root_i / (z_i + root_i) - d root_o / (z_o + root_o)
+            return (v, -v * (ri_x / (iz + ri) + ro_x / (oz + ro)),
+                    -v * (ri_y / (iz + ri) + ro_y / (oz + ro)))
+        s = ri * oz + ro * iz
+        v = 0.5 / s  # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86); d ln v = -d s / s
+        return v, -v * (ri_x * oz + ro_x * iz) / s, -v * (ri_y * oz + ro_y * iz) / s
+    li, li_x, li_y = smith_lambda_d(dist, ax, ay, ix, iy, iz)
+    lo, lo_x, lo_y = smith_lambda_d(dist, ax, ay, ox, oy, oz)
+    if separable:
+        v = 1.0 / ((1.0 + li) * (1.0 + lo)) / (4.0 * iz * oz)  # Heitz 2014, eq. 98
+        return (v, -v * (li_x / (1.0 + li) + lo_x / (1.0 + lo)),
+                -v * (li_y / (1.0 + li) + lo_y / (1.0 + lo)))
+    s = 1.0 + li + lo
+    v = 1.0 / s / (4.0 * iz * oz)  # eq. 99
+    return v, -v * (li_x + lo_x) / s, -v * (li_y + lo_y) / s
+
+
+@inline_kernel
+def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
+    """G2 / (4 cos_i cos_o) for directions above the horizon (see :func:`visibility_d`)."""
+    return visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)[0]
 
 
 @kernel
@@ -275,22 +326,64 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
 # --- lobe kernels (layout: ks[C], alpha, alpha_y, masking, fresnel[1 + 2C]) -------------------
 
 @inline_kernel
-def eval_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k):
+def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    """The channel-free factor D G2 / (4 cos_i cos_o) of f (0 unless both directions are above
+    the horizon), its partial derivatives in alpha_x and alpha_y, and the unnormalised half
+    vector; ``eval_`` and ``grad_`` both build f from it."""
     ax = q[nch]
     ay = q[nch + 1]
     hx = ix + ox
     hy = iy + oy
     hz = iz + oz
-    v = ndf(dist, ax, ay, hx, hy, hz) * visibility(dist, q[nch + 2] == 0.0, ax, ay,
-                                                   ix, iy, iz, ox, oy, oz)
-    v = v if (iz > 0.0 and oz > 0.0) else 0.0  # a select, not a branch: keeps the loop vectorised
+    d, d_x, d_y = ndf_d(dist, ax, ay, hx, hy, hz)
+    v, v_x, v_y = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy, oz)
+    above = iz > 0.0 and oz > 0.0  # selects, not branches: keep the loops vectorised
+    return (d * v if above else 0.0, (d_x * v + d * v_x) if above else 0.0,
+            (d_y * v + d * v_y) if above else 0.0, hx, hy, hz)
+
+
+@inline_kernel
+def _cos_d(ix, iy, iz, hx, hy, hz):
+    """wi.h with h the unit half vector of the unnormalised (hx, hy, hz)."""
+    return (ix * hx + iy * hy + iz * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)
+
+
+@inline_kernel
+def eval_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    v, _, _, hx, hy, hz = _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz)
     if q[nch + 3] == NONE:
         for c in range(nch):
             out[k, c] += q[c] * v  # Walter et al. 2007, eq. 20 with F = 1
     else:
-        cos_d = (ix * hx + iy * hy + iz * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)
+        cos_d = _cos_d(ix, iy, iz, hx, hy, hz)
         for c in range(nch):
             out[k, c] += q[c] * fresnel(q, nch + 3, nch, c, cos_d) * v  # eq. 20
+
+
+@inline_kernel
+def grad_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f to ``out[k, :nch]`` and set ``d[j, k, c]`` to df_c / dq[j] for the parameters f
+    depends on: Walter et al. 2007, eq. 20, differentiated in ks, alpha_x, alpha_y (through
+    :func:`ndf_d`, :func:`visibility_d`) and the Fresnel parameters (:func:`fresnel_d`)."""
+    v, v_x, v_y, hx, hy, hz = _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz)
+    if q[nch + 3] == NONE:
+        for c in range(nch):
+            ks = q[c]
+            out[k, c] += ks * v
+            d[c, k, c] = v
+            d[nch, k, c] = ks * v_x
+            d[nch + 1, k, c] = ks * v_y
+    else:
+        cos_d = _cos_d(ix, iy, iz, hx, hy, hz)
+        for c in range(nch):
+            ks = q[c]
+            f, f_a, f_b = fresnel_d(q, nch + 3, nch, c, cos_d)
+            out[k, c] += ks * f * v
+            d[c, k, c] = f * v
+            d[nch, k, c] = ks * f * v_x
+            d[nch + 1, k, c] = ks * f * v_y
+            d[nch + 4 + c, k, c] = ks * f_a * v
+            d[2 * nch + 4 + c, k, c] = ks * f_b * v
 
 
 @kernel

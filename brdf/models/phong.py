@@ -85,20 +85,41 @@ def cos_alpha(ix, iy, iz, ox, oy, oz):
 
 
 @inline_kernel
-def eval_(form, q, nch, ix, iy, iz, ox, oy, oz, out, k):
+def _lobe(form, q, nch, ix, iy, iz, ox, oy, oz):
+    """f per unit ks and its derivative in n (0 below the horizon or behind the lobe)."""
     if iz <= 0.0 or oz <= 0.0:
-        return
+        return 0.0, 0.0
     ca = cos_alpha(ix, iy, iz, ox, oy, oz)
     if ca <= 0.0:
-        return
+        return 0.0, 0.0
     n = q[nch]
+    p = ca ** n
     if form == ORIGINAL:
         scale = 1.0 / iz  # Phong 1975 over cos(theta_i): Lafortune & Willems 1994, sec. 3
+        scale_n = 0.0
     else:
         scale = (n + 2.0) / (2.0 * math.pi)  # Lafortune & Willems 1994, sec. 3
-    v = scale * ca ** n
+        scale_n = 1.0 / (2.0 * math.pi)
+    # Lafortune & Willems 1994, sec. 3, differentiated: d(scale ca^n)/dn = scale' ca^n
+    # + scale ca^n ln(ca)
+    return scale * p, scale_n * p + scale * p * math.log(ca)
+
+
+@inline_kernel
+def eval_(form, q, nch, ix, iy, iz, ox, oy, oz, out, k):
+    v, _ = _lobe(form, q, nch, ix, iy, iz, ox, oy, oz)
     for c in range(nch):
         out[k, c] += q[c] * v
+
+
+@inline_kernel
+def grad_(form, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """Add f = ks scale(n) cos^n(alpha) to ``out[k]``; its derivatives in ks and n into ``d``."""
+    v, v_n = _lobe(form, q, nch, ix, iy, iz, ox, oy, oz)
+    for c in range(nch):
+        out[k, c] += q[c] * v
+        d[c, k, c] = v
+        d[nch, k, c] = q[c] * v_n
 
 
 @kernel

@@ -1,5 +1,6 @@
-"""brdf.fit and its Problem: free parameters and their layout, the central-difference gradient
-against a slow one-coordinate-at-a-time reference, recovery of known parameters from noise-free
+"""brdf.fit and its Problem: free parameters and their layout, the analytic gradient against a
+slow one-coordinate-at-a-time reference and against central differences of the compiled loss for
+every loss and family (with shared, fixed and log-scaled parameters), recovery of known parameters from noise-free
 synthetic tables, the energy constraint, reproducibility, option errors and the CLI."""
 
 import json
@@ -94,12 +95,73 @@ def test_gradient_matches_a_slow_reference(rgb_table, spec, loss):
     assert np.abs(grad - ref).max() <= 1e-5 * np.abs(ref).max()
 
 
-def test_gradient_stays_inside_the_bounds(rgb_table):
+def test_difference_rows_stay_inside_the_bounds(rgb_table):
     p = Problem(rgb_table, "lambert(albedo=0) + ggx(alpha=0.3)")  # albedo at its lower bound
     rows, width = p.difference_rows(p.x0)
     assert np.all(rows >= p.lower) and np.all(rows <= p.upper)
     grad = p.gradient(p.x0)
     assert np.all(np.isfinite(grad)) and np.all(width > 0.0)
+
+
+@pytest.fixture(scope="module")
+def noisy_table():
+    """With stated sigma, so that chi-square is among the losses."""
+    return brdf.measure(RGB_TRUTH, GRID, "relative:0.05", seed=4)
+
+
+def central_gradient(p, x, h=1e-5):
+    """Central differences of the compiled loss, one coordinate at a time."""
+    grad = np.empty(len(x))
+    for i in range(len(x)):
+        up, down = x.copy(), x.copy()
+        up[i] += h
+        down[i] -= h
+        grad[i] = (p.loss(up) - p.loss(down)) / (2.0 * h)
+    return grad
+
+
+def assert_gradient_matches_differences(p, seed):
+    # a fifth of the way to a random point of the box: far into it, Lafortune's powers reach
+    # 1e170, where differences of the loss keep no digits of the smaller derivatives
+    x = p.x0 + 0.2 * (p.random_x(np.random.default_rng(seed), 1)[0] - p.x0)
+    value, grad = p.loss_and_gradient(x)
+    assert value == pytest.approx(p.loss(x), rel=1e-12)
+    ref = central_gradient(p, x)
+    assert np.all(np.abs(grad - ref) <= 1e-6 * (np.abs(ref) + 1e-3 * np.abs(ref).max())), (
+        p.names, grad, ref)
+
+
+# shared, fixed and log-scaled parameters, a Fresnel term, a fallback (alpha_y) and anisotropy
+OPTIONS = [
+    ("lambert + ggx(alpha=0.3, fresnel=schlick(f0=[0.04,0.05,0.06]))",
+     {"shared": ("ks",), "fix": {"lambert.albedo[1]": 0.4}}),
+    ("lambert + beckmann(alpha=0.2, alpha_y=0.4, fresnel=conductor(eta=0.2, k=3))",
+     {"shared": ("eta",), "fix": {"k": 3.5}}),
+    ("ggx(alpha=0.3, masking=height-correlated, fresnel=dielectric(eta=1.5))", {}),
+]
+
+
+@pytest.mark.parametrize("loss", list(losses.LOSSES))
+@pytest.mark.parametrize("spec,options", OPTIONS)
+def test_analytic_gradient_matches_differences_for_every_loss(noisy_table, loss, spec, options):
+    p = Problem(noisy_table, spec, loss=loss, **options)
+    assert_gradient_matches_differences(p, seed=5)
+
+
+@pytest.mark.parametrize("spec", SPECS[3:])
+def test_analytic_gradient_matches_differences_for_every_family(noisy_table, spec):
+    for i, loss in enumerate(losses.LOSSES):
+        assert_gradient_matches_differences(Problem(noisy_table, spec, loss=loss), seed=i)
+
+
+def test_metrics_from_one_evaluation_agree_with_the_loss_passes(noisy_table):
+    p = Problem(noisy_table, OPTIONS[0][0], loss="log")
+    x = p.x0 + 0.2 * (p.random_x(np.random.default_rng(1), 1)[0] - p.x0)
+    metrics = p.metrics(x)
+    assert set(metrics) == set(losses.LOSSES)  # the table states sigma: chi-square too
+    for name, value in metrics.items():
+        terms = losses.terms(name, p.samples, len(p.free))
+        assert value == pytest.approx(float(p.channel_losses(x, terms)[0].sum()), rel=1e-12)
 
 
 # --- recovery ------------------------------------------------------------------------------------
