@@ -12,9 +12,10 @@ Photometric Data") holds, after a first line naming the format and ``[KEYWORD]``
   may wrap over any number of lines.
 
 Type C photometry only: vertical angles from the nadir (0) to the zenith (180), horizontal
-angles about the vertical axis. The horizontal range says the symmetry of the distribution:
-0 (one plane: symmetric about the axis), 0-90 (symmetric in each quadrant), 0-180 (symmetric
-about the 0-180 plane), 90-270 (symmetric about the 90-270 plane, LM-63-1995) or 0-360 (none).
+angles about the vertical axis, counterclockwise seen from above (LM-63-2002, section 3). The
+horizontal range says the symmetry of the distribution: 0 (one plane: symmetric about the
+axis), 0-90 (symmetric in each quadrant), 0-180 (symmetric about the 0-180 plane), 90-270
+(symmetric about the 90-270 plane, LM-63-1995) or 0-360 (none).
 """
 
 import re

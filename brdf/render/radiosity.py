@@ -108,8 +108,8 @@ def solve(scene, patches=8, samples=2, tol=1e-9, max_iterations=10_000):
 
     Notes
     -----
-    Quads that overlap in one plane (a box standing on a floor with its bottom face) let the
-    floor's patches see the box's inside; leave such hidden faces out.
+    Points of a patch covered by another quad in its plane facing it (the floor under the
+    bottom face of a box standing on it) are left out of the quadrature and of visibility.
     """
     if int(patches) < 1 or int(samples) < 1:
         raise InputError(f"radiosity: patches and samples must be at least 1, got {patches}, "
@@ -127,10 +127,8 @@ def solve(scene, patches=8, samples=2, tol=1e-9, max_iterations=10_000):
         if not np.isfinite(change):
             break
     if not change < tol:
-        # row sums of F above 1 (overlapping coplanar quads see each other's surroundings
-        # twice) make the iteration diverge
-        raise InputError(f"radiosity: no convergence in {it} sweeps (last change {change:.3g}); "
-                         "do quads overlap in one plane?")
+        # row sums of F above 1 (a patch seeing through to another's surroundings) diverge
+        raise InputError(f"radiosity: no convergence in {it} sweeps (last change {change:.3g})")
     return Radiosity(mesh["corner"], mesh["e1"], mesh["e2"], mesh["n"], mesh["quad"],
                      mesh["side"], mesh["area"], L, it, int(patches), quads)
 
@@ -204,7 +202,7 @@ def _mesh(quads, rho, emission, p):
 # --- form factors ------------------------------------------------------------------------------
 
 def _points(mesh, s):
-    """Centres of an s x s grid of cells over each patch, offset a hair off its side: (n, s*s, 3)."""
+    """Centres of an s x s grid of cells over each patch, a hair off its side: (n, s*s, 3)."""
     g = (np.arange(s) + 0.5) / s
     a, b = np.meshgrid(g, g, indexing="ij")
     pts = (mesh["corner"][:, None, :] + a.reshape(1, -1, 1) * mesh["e1"][:, None, :]
@@ -237,6 +235,7 @@ def _form_factors(mesh, quads, s, block=48):
                        axis=1)
     normal = mesh["n"]
     centre = pts.mean(axis=1)
+    open_ = ~_buried(pts, mesh, quads)
     F = np.zeros((n_p, n_p))
     for i0 in range(0, n_p, block):
         rows = np.arange(i0, min(n_p, i0 + block))
@@ -261,8 +260,26 @@ def _form_factors(mesh, quads, s, block=48):
         # visibility towards the points of j in front of i
         front = (np.einsum("mbc,mc->mb", pts[pj], normal[rows[pi]])
                  > np.einsum("mc,mc->m", centre[rows[pi]], normal[rows[pi]])[:, None])
-        F[rows[pi], pj] = np.mean(ff * _visibility(x, pts[pj], front, quads), axis=1)
+        vis = _visibility(x, pts[pj], front & open_[pj], quads) * open_[rows[pi]]
+        F[rows[pi], pj] = np.mean(ff * vis, axis=1)
     return F
+
+
+def _buried(pts, mesh, quads):
+    """Sample points (n, s2) that lie on another quad facing them, in the same plane (a
+    floor under a box's bottom face): they neither see nor are seen."""
+    corner, _, _, n, d1, d2 = quads
+    flat = pts.reshape(-1, 3)
+    own = np.repeat(mesh["quad"], pts.shape[1])
+    side_n = np.repeat(mesh["n"], pts.shape[1], axis=0)
+    tol = 1e-7 * (1.0 + np.max(np.abs(corner)))
+    out = np.zeros(len(flat), bool)
+    for k in range(len(corner)):
+        rel = flat - corner[k]
+        a, b = rel @ d1[k], rel @ d2[k]
+        out |= ((np.abs(rel @ n[k]) < tol) & (own != k) & (a > 0) & (a < 1) & (b > 0) & (b < 1)
+                & (side_n @ n[k] < -0.999999))
+    return out.reshape(pts.shape[:2])
 
 
 def _clip(poly, h):
