@@ -87,7 +87,7 @@ class Radiosity:
         return out
 
 
-def solve(scene, patches=8, samples=2, tol=1e-9, max_iterations=10_000):
+def solve(scene, patches=4, samples=2, tol=1e-9, max_iterations=10_000):
     """Radiosity solution of ``scene`` (a :class:`~brdf.render.Scene` of quads with Lambertian
     materials, or none, and optional emission; no other lights, no environment).
 
@@ -95,7 +95,8 @@ def solve(scene, patches=8, samples=2, tol=1e-9, max_iterations=10_000):
     ----------
     scene : Scene
     patches : int
-        Patches along each edge of each quad.
+        Patches along each edge of each quad. The cost grows as patches^4: the Cornell box
+        takes about 12 s at 4 and a minute at 6 on two cores.
     samples : int
         Points along each edge of a patch for the form factor's quadrature and visibility.
     tol : float
