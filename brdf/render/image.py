@@ -59,15 +59,17 @@ def read_image(source, what="image", channels=None, srgb=True):
 def _read_exr(path):
     import OpenEXR
     try:
+        # the channels are only readable while the file is open
         with OpenEXR.File(str(path)) as f:
             ch = f.channels()
+            key = next((k for k in ("RGB", "RGBA", "Y") if k in ch), next(iter(ch), None))
+            if key is None:
+                raise FormatError(path, "", "holds no channels")
+            return np.array(ch[key].pixels, dtype=float)
+    except FormatError:
+        raise
     except Exception as e:  # OpenEXR raises RuntimeError or OSError for damaged files
         raise FormatError(path, "", f"not a readable OpenEXR file ({e})") from None
-    for key in ("RGB", "RGBA", "Y"):
-        if key in ch:
-            return np.asarray(ch[key].pixels, dtype=float)
-    first = next(iter(ch.values()))
-    return np.asarray(first.pixels, dtype=float)
 
 
 def _read_png(path, srgb):

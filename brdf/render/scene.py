@@ -111,8 +111,9 @@ class Material:
 
 
 def _lobe_slots(lobe, decl, nch):
-    """Positions of parameter ``decl`` in a lobe's packed block (one per channel), found by
-    packing it with probe values."""
+    """``(channel, position)`` of each slot of parameter ``decl`` in a lobe's packed block,
+    found by packing it with probe values; a parameter that an unset one falls back to (GGX's
+    alpha for alpha_y) fills that one's slots too."""
     base = np.asarray(lobe.pack(nch))
     lo, hi = decl.bounds
     lo = lo if math.isfinite(lo) else -1.0
@@ -120,7 +121,8 @@ def _lobe_slots(lobe, decl, nch):
     probes = lo + (hi - lo) * (0.1234567 + 0.1 * np.arange(nch if decl.per_channel else 1))
     moved = np.asarray(lobe.replace(**{decl.name: probes if decl.per_channel else probes[0]})
                        .pack(nch))
-    return [int(np.flatnonzero((moved != base) & (moved == p))[0]) for p in probes]
+    return [(c, int(k)) for c, p in enumerate(probes)
+            for k in np.flatnonzero((moved != base) & (moved == p))]
 
 
 # --- shapes -----------------------------------------------------------------------------------
@@ -262,9 +264,13 @@ class GoniometricLight:
 
     @classmethod
     def from_ies(cls, path, position, **options):
+        """A light from an IES LM-63 file (see :func:`~brdf.render.ies.read_ies`), ``axis``
+        its nadir and ``phi_axis`` its horizontal angle 0."""
         from .ies import read_ies
         table, theta, phi = read_ies(path)
-        return cls(position, table, theta, phi, **options)
+        # LM-63 turns horizontal angles counterclockwise seen from above, i.e. about the
+        # zenith; this light turns phi about ``axis``, the nadir: phi = 360 - C
+        return cls(position, table[:, ::-1], theta, 360.0 - phi[::-1], **options)
 
     def resampled(self):
         """The table on the kernel's regular (theta, phi) grid, bilinear and periodic in phi."""
@@ -364,7 +370,7 @@ class Scene:
         # area lights from emissive shapes
         for i, (kind, j, _, k) in enumerate(prims):
             s = self.shapes[k]
-            if s.emission is None:
+            if getattr(s, "emission", None) is None:  # meshes do not emit
                 continue
             if kind == X.TRIANGLE:
                 raise InputError(f"shape {k}: emission is for quads and spheres")
@@ -624,5 +630,5 @@ def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):
         h, w, nc = img.shape
         texmeta.append((sum(t.size for t in tex), w, h, nc))
         tex.append(img.ravel())
-        for ch, slot in enumerate(_lobe_slots(lobe, decl, 3)):
+        for ch, slot in _lobe_slots(lobe, decl, 3):
             bind.append((i, compiled.offsets[l] + slot, len(texmeta) - 1, ch))

@@ -9,21 +9,12 @@ import pytest
 import brdf
 from brdf import render
 from brdf.errors import InputError
+from pixels import pixel_directions as _pixel_directions
 
 
 def _z(a, b):
     """Per-pixel z-scores of the difference of two independent renders."""
     return (a.image - b.image) / np.sqrt(a.variance + b.variance + 1e-30)
-
-
-def _pixel_directions(camera, w, h):
-    """Unit directions of the rays through pixel centres (as the renderer builds them)."""
-    cam = camera.pack(w, h)
-    x = (np.arange(w) + 0.5) / w * 2 - 1
-    y = 1 - (np.arange(h) + 0.5) / h * 2
-    X, Y = np.meshgrid(x, y)
-    d = cam[3:6] + X[..., None] * cam[6:9] + Y[..., None] * cam[9:12]
-    return d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
 def test_white_furnace_lambert_is_one():
