@@ -33,7 +33,7 @@ def test_demo_writes_every_stage(results):
     syn = summary["datasets"]["synthetic-merl"]
     assert syn["compare"][0]["spec"] == "lambert + ggx"
     fit = json.loads((out / "synthetic-merl-fit.json").read_text())
-    alpha = [v for k, v in fit["parameters"].items() if k.endswith("alpha")][0]
+    alpha = [v for k, v in fit["params"].items() if k.endswith("alpha")][0]
     assert abs(alpha - 0.18) < 0.01
     # the real paper is nearly diffuse and keeps its energy
     assert "posterior" in summary["datasets"]["paper-white"]
