@@ -48,7 +48,27 @@ def test_two_local_processes_give_the_reports_of_one(folder):
     assert [row["status"] for row in two.rows] == ["fitted", "fitted"] and two.ok
     assert [row["file"] for row in two.rows] == [row["file"] for row in one.rows]
     for name in ("t0.json", "t1.json"):
-        assert _without_timing(folder / "two" / name) == _without_timing(folder / "one" / name)
+        two_report = _without_timing(folder / "two" / name)
+        one_report = _without_timing(folder / "one" / name)
+        # The fit itself is bit-identical across processes. The energy check's quadrature
+        # results (albedo curve, error estimates) may differ in the last bit between this
+        # process and a spawned worker (seen once in a fresh-clone run; in one process they
+        # do not depend on the thread count): compared to 1e-12 until that is pinned down.
+        checks_two, checks_one = two_report.pop("checks"), one_report.pop("checks")
+        energy_two, energy_one = two_report.pop("energy"), one_report.pop("energy")
+        assert two_report == one_report
+        assert _close(checks_two, checks_one) and _close(energy_two, energy_one)
+
+
+def _close(a, b, rtol=1e-12):
+    """Equal structures whose floats agree to ``rtol``."""
+    if isinstance(a, dict):
+        return isinstance(b, dict) and a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+    if isinstance(a, list):
+        return isinstance(b, list) and len(a) == len(b) and all(map(_close, a, b))
+    if isinstance(a, float) and isinstance(b, float):
+        return a == b or abs(a - b) <= rtol * max(abs(a), abs(b))
+    return a == b
 
 
 def test_batch_runs_on_a_dask_cluster(folder):
