@@ -196,13 +196,18 @@ class _SceneFile:
             return Material(brdf_of(m["brdf"]), tex)
         self.fail(f"materials.{name}", "expected a spec, a path or {brdf, textures}")
 
+    def typed(self, where, entry, kinds):
+        """``(type, the other keys)`` of a shape or light entry whose type is one of ``kinds``."""
+        kind = entry.get("type") if isinstance(entry, dict) else None
+        if kind not in kinds:
+            self.fail(where, f"type must be one of {', '.join(kinds)}, got {kind!r}")
+        rest = dict(entry)
+        rest.pop("type")
+        return kind, rest
+
     def shape(self, i, s, mats):
         where = f"shapes[{i}]"
-        kind = s.get("type") if isinstance(s, dict) else None
-        if kind not in _SHAPES:
-            self.fail(where, f"type must be one of {', '.join(_SHAPES)}, got {kind!r}")
-        s = dict(s)
-        s.pop("type")
+        kind, s = self.typed(where, s, _SHAPES)
         name = s.pop("material", None)
         if name == "@material":
             mat = self.cli_material
@@ -229,11 +234,7 @@ class _SceneFile:
 
     def light(self, i, x):
         where = f"lights[{i}]"
-        kind = x.get("type") if isinstance(x, dict) else None
-        if kind not in _LIGHTS:
-            self.fail(where, f"type must be one of {', '.join(_LIGHTS)}, got {kind!r}")
-        x = dict(x)
-        x.pop("type")
+        kind, x = self.typed(where, x, _LIGHTS)
         try:
             if kind == "point":
                 return PointLight(**x)
