@@ -37,14 +37,37 @@ def test_every_table_reads_and_checks(name):
     assert report["non-negativity"].passed is not None
 
 
-def test_synthetic_tables_regenerate_byte_for_byte(tmp_path):
+def _make_synthetic():
     spec = importlib.util.spec_from_file_location("make_synthetic",
                                                   FOLDER / "make_synthetic.py")
     make = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(make)
-    assert make.main(tmp_path) == 0
+    return make
+
+
+def test_synthetic_tables_regenerate(tmp_path):
+    """The same seed gives the same bytes in one run; against the checked-in files the header
+    and geometry hold exactly and the values to 1e-12 (a formula rewritten in an equivalent
+    order, or a kernel compiled on another machine, may round the model's value differently in
+    the last bit; the noise draws themselves are fixed by the seed)."""
+    make = _make_synthetic()
+    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
+    assert make.main(tmp_path / "a") == 0 and make.main(tmp_path / "b") == 0
     for name in make.TABLES:
-        assert (tmp_path / name).read_bytes() == (FOLDER / "synthetic" / name).read_bytes()
+        again = (tmp_path / "a" / name).read_text()
+        assert again == (tmp_path / "b" / name).read_text(), name
+        mine, theirs = (_split(text) for text in (again, (FOLDER / "synthetic" / name).read_text()))
+        assert mine[0] == theirs[0] and mine[1].shape == theirs[1].shape, name
+        np.testing.assert_array_equal(mine[1][:, :4], theirs[1][:, :4])
+        np.testing.assert_allclose(mine[1][:, 4:], theirs[1][:, 4:], rtol=1e-12, atol=0)
+
+
+def _split(text):
+    """Comment and header lines, and the numbers of a gonio CSV."""
+    lines = text.splitlines()
+    head = [line for line in lines if line.startswith("#") or line[:1].isalpha()]
+    rows = [line.split(",") for line in lines if line and line not in head]
+    return head, np.array(rows, dtype=float)
 
 
 def test_synthetic_tables_hold_their_models_within_the_stated_noise():

