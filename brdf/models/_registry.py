@@ -24,6 +24,19 @@ class Registry:
         self._classes[cls.name] = cls
         return cls
 
+    def unregister(self, name):
+        """Remove the class registered as ``name`` and its aliases; returns it."""
+        cls = self.get(name)
+        del self._classes[cls.name]
+        for key in [k for k, v in self._aliases.items() if v == cls.name]:
+            del self._aliases[key]
+        return cls
+
+    def owner(self, key):
+        """The class registered under the name or alias ``key``, or None."""
+        name = self._aliases.get(key)
+        return None if name is None else self._classes[name]
+
     def get(self, name):
         key = self._aliases.get(name)
         if key is None:
