@@ -41,7 +41,8 @@ from ..geometry import direction_array, flat_pairs
 from ._registry import MODELS
 from .base import _GAUSS_RULES, Choice, Model, Nested, Param, sample_inputs
 
-__all__ = ["CustomModel", "register_model", "unregister_model", "load_plugin",
+__all__ = ["CustomModel", "register_model", "unregister_model", "load_plugin", "plugin_sources",
+           "ensure_plugins",
            "square_to_cosine_hemisphere", "cosine_hemisphere_pdf", "START_GRID", "HINT_POINTS"]
 
 INV_PI = 1.0 / math.pi
@@ -406,6 +407,41 @@ def unregister_model(name):
     return MODELS.unregister(cls.name)
 
 
+def plugin_sources():
+    """What another process must import to know the registered custom families, in order of
+    registration: module names, or the files :func:`load_plugin` read. Families defined in a
+    script's ``__main__`` are left out: spawned workers run the script's top level again."""
+    out = []
+    for cls in MODELS.classes():
+        if not issubclass(cls, CustomModel) or cls.__module__ in ("__main__", "__mp_main__"):
+            continue
+        source = cls.__module__
+        if source.startswith(_PLUGIN_PREFIX):
+            source = getattr(sys.modules.get(source), "__file__", None)
+        if source and source not in out:
+            out.append(source)
+    return out
+
+
+def ensure_plugins(sources):
+    """Load each of ``sources`` (see :func:`plugin_sources`) not yet imported here: a worker's
+    first task imports them, later tasks and the parent process find them loaded."""
+    for source in sources:
+        if _module_name(source) not in sys.modules:
+            load_plugin(source)
+
+
+#: Module names of plugin files read by :func:`load_plugin` start with this.
+_PLUGIN_PREFIX = "brdf_plugin_"
+
+
+def _module_name(source):
+    source = os.fspath(source)
+    if source.endswith(".py") or os.sep in source:
+        return _PLUGIN_PREFIX + re.sub(r"\W", "_", os.path.splitext(os.path.basename(source))[0])
+    return source
+
+
 def load_plugin(source):
     """Import the Python file or module ``source`` whose import registers custom families
     (``brdf-fit --plugin``); returns the module.
@@ -420,7 +456,7 @@ def load_plugin(source):
         if not os.path.isfile(source):
             raise InputError(f"plugin {source}: no such file (expected a .py file or a module "
                              "name)")
-        name = "brdf_plugin_" + re.sub(r"\W", "_", os.path.splitext(os.path.basename(source))[0])
+        name = _module_name(source)
         spec = importlib.util.spec_from_file_location(name, source)
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module

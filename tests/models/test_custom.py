@@ -385,6 +385,16 @@ def test_mcmc_samples_a_custom_family(on):
     assert albedo["2.5"] < 0.5 < albedo["97.5"] and albedo["97.5"] - albedo["2.5"] < 0.05
 
 
+def test_batch_workers_are_told_the_plugins(tmp_path, on):
+    from brdf.models.custom import plugin_sources
+    assert plugin_sources() == [__name__, str(EXAMPLE)]  # a module name, a plugin file
+    brdf.write(brdf.measure("oren-nayar(albedo=0.4, sigma=0.3)", "grid:15,45"),
+               tmp_path / "on.csv")
+    result = brdf.batch([tmp_path / "on.csv"], "oren-nayar", tmp_path / "out", jobs=1)
+    assert [r["status"] for r in result.rows] == ["fitted"]
+    assert result.rows[0]["oren-nayar.sigma"] == pytest.approx(0.3, rel=1e-4)
+
+
 # --- rendering, export, the command line ------------------------------------------------------
 
 def test_render_tabulates_custom_materials(on):
