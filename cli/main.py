@@ -63,6 +63,10 @@ def _common(suppress):
                    help="show the traceback of errors")
     p.add_argument("-q", "--quiet", action="store_true", default=default,
                    help="print nothing but --json output and errors (the exit status tells)")
+    p.add_argument("--plugin", action="append", default=argparse.SUPPRESS if suppress else [],
+                   metavar="FILE.py|MODULE",
+                   help="import a Python file or module that registers custom model families "
+                        "(brdf.register_model) before running; repeatable")
     return p
 
 
@@ -282,6 +286,24 @@ def _failure(exc, debug):
     return EXIT_INTERNAL
 
 
+def _load_plugins(args):
+    """Import the ``--plugin`` files and modules; 0, or exit status 2 after a one-line error
+    naming the plugin (a plugin is the user's input, like a spec)."""
+    for source in args.plugin:
+        try:
+            from brdf.models.custom import load_plugin
+            load_plugin(source)
+        except Exception as exc:  # noqa: BLE001  (whatever the plugin raises)
+            if args.debug:
+                import traceback
+                traceback.print_exception(exc)
+            from brdf.errors import BRDFError
+            text = str(exc) if isinstance(exc, BRDFError) else f"{type(exc).__name__}: {exc}"
+            _error(text if text.startswith("plugin ") else f"plugin {source}: {text}")
+            return EXIT_USAGE
+    return 0
+
+
 def main(argv=None):
     """Run ``brdf-fit`` with ``argv`` (default: the process arguments); return the exit status."""
     try:
@@ -291,6 +313,9 @@ def main(argv=None):
         return EXIT_USAGE
     except SystemExit as exc:  # --help and --version
         return exc.code or 0
+    status = _load_plugins(args)
+    if status:
+        return status
     try:
         return args.handler(args, Output(sys.stdout, args.quiet))
     except KeyboardInterrupt:

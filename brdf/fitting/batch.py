@@ -129,10 +129,14 @@ def _same_options(saved, options):
     return all(saved.get(k) == v for k, v in given.items())
 
 
-def fit_file(path, spec, options):
-    """Worker task: ``(report dict, None)`` or ``(None, one-line error)`` for one input."""
+def fit_file(path, spec, options, plugins=()):
+    """Worker task: ``(report dict, None)`` or ``(None, one-line error)`` for one input.
+    ``plugins`` (:func:`brdf.models.custom.plugin_sources` of the caller) are imported first
+    where not yet loaded, so that spawned and remote workers know the caller's custom families."""
+    from ..models.custom import ensure_plugins
     from .nlopt_fit import fit
     try:
+        ensure_plugins(plugins)
         return fit(path, spec, progress=False, **options).to_dict(), None
     except BRDFError as exc:
         return None, str(exc)
@@ -183,22 +187,25 @@ def _dask_client(scheduler):
 
 def _submit(todo, spec, options, jobs, scheduler):
     """Yield ``(path, (report, error))`` as the fits finish, in any order."""
+    from ..models.custom import plugin_sources
+    plugins = plugin_sources()
     if scheduler is not None:
         from dask.distributed import as_completed
         client = _dask_client(scheduler)
         try:
-            futures = {client.submit(fit_file, p, spec, options, pure=False): p for p in todo}
+            futures = {client.submit(fit_file, p, spec, options, plugins, pure=False): p
+                       for p in todo}
             for future in as_completed(futures):
                 yield futures[future], future.result()
         finally:
             client.close()
     elif jobs == 1:
         for p in todo:
-            yield p, fit_file(p, spec, options)
+            yield p, fit_file(p, spec, options, plugins)
     else:
         from concurrent.futures import as_completed
         with _local_pool(jobs) as pool:
-            futures = {pool.submit(fit_file, p, spec, options): p for p in todo}
+            futures = {pool.submit(fit_file, p, spec, options, plugins): p for p in todo}
             for future in as_completed(futures):
                 yield futures[future], future.result()
 

@@ -142,6 +142,7 @@ def export(obj, format, path=None, force=False):
     model = _model_of(obj)
     if format not in FORMATS:
         raise InputError(f"unknown export format {format!r}; use one of {', '.join(FORMATS)}")
+    _refuse_custom(model, format)
     if model.channels not in (1, 3):
         raise InputError(f"{model}: {model.channels} channels; {format} takes one channel or "
                          "RGB (spectral models have no wavelengths to convert)")
@@ -173,6 +174,7 @@ def check_families(model, format):
     """Raise the error :func:`export` would give for a model whose families ``format`` lacks,
     without converting anything (``brdf-fit fit --export`` asks before it fits)."""
     model = _model_of(model)
+    _refuse_custom(model, format)
     shape = " + ".join(lobe.name for lobe in _gltf_lobes(model)[0])
     if format == "gltf" and shape not in EXPORTABLE["gltf"]:
         raise _unsupported(model, "gltf", ": glTF's microfacet lobe is GGX only"
@@ -180,6 +182,15 @@ def check_families(model, format):
     for lobe in model.lobes:
         if format == "mitsuba" and lobe.name not in EXPORTABLE["mitsuba"]:
             raise _unsupported(lobe, "mitsuba")
+
+
+def _refuse_custom(model, format):
+    """Custom (numpy-written) lobes have no counterpart in either format."""
+    custom = sorted({lobe.name for lobe in model.lobes if lobe.kind < 0})
+    if custom:
+        raise InputError(f"{model}: the custom lobe(s) {', '.join(custom)} have no {format} "
+                         "equivalent; tabulate the model with brdf.measure(model, 'merl') and "
+                         "use the MERL table instead")
 
 
 def _unsupported(model, format, why=""):

@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["LOSSES", "DEFAULT_CUTOFF", "LOG_OFFSET", "RELATIVE_FLOOR", "SIGMA_FLOOR", "Samples",
-           "Terms", "prepare", "sample_weights", "merl_solid_angles", "terms", "evaluate",
+           "Terms", "prepare", "sample_weights", "merl_solid_angles", "terms", "evaluate", "channel_values",
            "check_loss"]
 
 #: The metrics and where they come from.
@@ -285,8 +285,13 @@ def terms(name, samples, n_free=0):
 
 def evaluate(t, f):
     """Metric value of model values ``f`` (n, C) against :class:`Terms` ``t``, in numpy."""
+    return float(channel_values(t, f).sum())
+
+
+def channel_values(t, f):
+    """Per-channel contributions ``(C,)`` to :func:`evaluate`, in numpy."""
     v = t.scale * f
     if t.offset:
         v = np.log(t.offset + v)
     r = v - t.target
-    return float((t.weight[:, None] * r * r).sum() / t.norm)
+    return (t.weight[:, None] * r * r).sum(axis=0) / t.norm

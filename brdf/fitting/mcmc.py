@@ -347,13 +347,13 @@ def _progress(total, enabled):
 def _start_fit(data, start, seed, fit_options):
     """The FitResult the walkers start from, and the problem it was fitted on."""
     from .nlopt_fit import FitResult, fit
-    from .problem import Problem
+    from .mixed_problem import problem_for
     if not isinstance(start, FitResult):
         start = fit(data, start, seed=seed, **fit_options)
     opts = start.provenance["options"]
-    problem = Problem(data, start.spec, loss=opts["loss"], cutoff=opts["cutoff_deg"],
-                      shared=opts["shared"], fix=opts["fix"],
-                      bounds={k: tuple(v) for k, v in opts["bounds"].items()})
+    problem = problem_for(data, start.spec, loss=opts["loss"], cutoff=opts["cutoff_deg"],
+                          shared=opts["shared"], fix=opts["fix"],
+                          bounds={k: tuple(v) for k, v in opts["bounds"].items()})
     return start, problem, problem.x0  # the spec's values: the optimum
 
 

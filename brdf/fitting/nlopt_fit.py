@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from . import losses
-from .problem import Problem
+from .mixed_problem import problem_for
 from .report import SCHEMA
 
 __all__ = ["fit", "FitResult", "OPTIMIZERS", "ENERGY_THETA", "ENERGY_PHI", "DEFAULT_MAX_EVALS",
@@ -435,8 +435,9 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         A metric of :data:`brdf.fitting.losses.LOSSES` (default ``cosine-l2``).
     optimizer : str
         A key of :data:`OPTIMIZERS`: LD_LBFGS, LD_SLSQP (analytic gradients,
-        see :class:`~brdf.fitting.problem.Problem`), LN_BOBYQA, LN_NELDERMEAD, LN_COBYLA
-        (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL (global, then polished).
+        see :class:`~brdf.fitting.problem.Problem`; central differences for models with
+        custom lobes, see :class:`~brdf.fitting.mixed_problem.MixedProblem`), LN_BOBYQA,
+        LN_NELDERMEAD, LN_COBYLA (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL (global, then polished).
     starts : int
         Local optimizers: runs from the spec's values and ``starts - 1`` seeded random points
         of the box (log-uniform for log-scaled parameters); the best is kept.
@@ -469,8 +470,8 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
     start = time.perf_counter()
     _validate(optimizer, starts, seed, max_evals, tol)
     table = _load(data)
-    problem = Problem(table, spec, loss=loss, cutoff=cutoff, shared=shared, fix=fix,
-                      bounds=bounds)
+    problem = problem_for(table, spec, loss=loss, cutoff=cutoff, shared=shared, fix=fix,
+                          bounds=bounds)
     if not problem.free:
         raise InputError(f"nothing to fit: every parameter of {problem.base} is fixed")
     prepared = time.perf_counter()

@@ -17,6 +17,7 @@ from .phong import ModifiedPhong, Phong
 from .ward import Ward
 from .ashikhmin_shirley import AshikhminShirley
 from .lafortune import Lafortune
+from .custom import CustomModel, load_plugin, register_model, unregister_model
 
 __all__ = ["MODELS", "FRESNEL", "register", "Param", "Choice", "Nested", "Component", "Model",
            "Sum", "Compiled", "Lambert", "Mirror", "GGX", "Beckmann", "NoFresnel", "Schlick",
@@ -24,3 +25,4 @@ __all__ = ["MODELS", "FRESNEL", "register", "Param", "Choice", "Nested", "Compon
 __all__ += ["Phong", "ModifiedPhong", "BlinnPhong"]
 __all__ += ["Ward"]
 __all__ += ["Lafortune", "AshikhminShirley"]
+__all__ += ["CustomModel", "register_model", "unregister_model", "load_plugin"]

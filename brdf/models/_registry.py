@@ -10,8 +10,8 @@ from ..errors import SpecError
 class Registry:
     """Name -> class, with aliases; lookups of unknown names list the valid ones."""
 
-    def __init__(self, what):
-        self.what = what
+    def __init__(self, what, hint=""):
+        self.what, self.hint = what, hint
         self._classes = {}
         self._aliases = {}
 
@@ -24,10 +24,24 @@ class Registry:
         self._classes[cls.name] = cls
         return cls
 
+    def unregister(self, name):
+        """Remove the class registered as ``name`` and its aliases; returns it."""
+        cls = self.get(name)
+        del self._classes[cls.name]
+        for key in [k for k, v in self._aliases.items() if v == cls.name]:
+            del self._aliases[key]
+        return cls
+
+    def owner(self, key):
+        """The class registered under the name or alias ``key``, or None."""
+        name = self._aliases.get(key)
+        return None if name is None else self._classes[name]
+
     def get(self, name):
         key = self._aliases.get(name)
         if key is None:
-            raise SpecError(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}")
+            raise SpecError(f"unknown {self.what} {name!r}; valid: {', '.join(self.names())}"
+                            f"{self.hint}")
         return self._classes[key]
 
     def names(self):
@@ -40,6 +54,7 @@ class Registry:
         return name in self._aliases
 
 
-MODELS = Registry("model")
+MODELS = Registry("model", " (a custom family must be registered first: import its module, "
+                           "or brdf-fit --plugin FILE)")
 FRESNEL = Registry("Fresnel term")
 register = MODELS.register

@@ -3,7 +3,9 @@
 A model family declares its parameters once (:class:`Param`, :class:`Choice`, :class:`Nested`);
 that declaration drives spec parsing and printing, validation, JSON, flat ``"lobe.param"`` names,
 and the bounds and priors that fitting uses. Evaluation, sampling and the albedo quadrature run in
-compiled kernels (:mod:`brdf.models._kernels`) that every model, sums included, goes through.
+compiled kernels (:mod:`brdf.models._kernels`) that every built-in family, and every sum of
+them, goes through. Families written in numpy (:class:`brdf.models.custom.CustomModel`) have no
+kernel (``kind`` -1); a sum holding one is evaluated lobe by lobe (:mod:`brdf.models.mixed`).
 """
 
 import math
@@ -13,7 +15,7 @@ import numpy as np
 from ..errors import InputError, ParameterError, SpecError
 from ..geometry import direction_array, flat_pairs
 
-__all__ = ["Param", "Choice", "Nested", "Component", "Model", "Sum", "Compiled"]
+__all__ = ["Param", "Choice", "Nested", "Component", "Model", "Sum", "Compiled", "sample_inputs"]
 
 
 class Param:
@@ -370,6 +372,13 @@ class Model(Component):
     def is_anisotropic(self):
         return self.anisotropic
 
+    @property
+    def uses_kernels(self):
+        """True when every lobe is a built-in family with compiled kernels (``kind`` >= 0); a
+        model with a numpy-written lobe (:class:`~brdf.models.custom.CustomModel`) is evaluated
+        by :mod:`brdf.models.mixed` instead."""
+        return all(lobe.kind >= 0 for lobe in self.lobes)
+
     def compile(self, nch=None):
         """Kernel representation of this model with ``nch`` channels (default: its own)."""
         nch = self.channels if nch is None else nch
@@ -386,6 +395,9 @@ class Model(Component):
     # -- evaluation ----------------------------------------------------------------------------
     def eval(self, wi, wo):
         """BRDF value f_r(wi, wo) in 1/sr without the cosine, shaped ``(..., C)``."""
+        if not self.uses_kernels:
+            from . import mixed
+            return mixed.eval(self, wi, wo)
         from . import _kernels
         wi, wo, shape = flat_pairs(wi, wo)
         c = self._compiled()
@@ -395,6 +407,9 @@ class Model(Component):
 
     def pdf(self, wi, wo):
         """Solid-angle density of :meth:`sample` at ``wo``, shaped ``(...)``."""
+        if not self.uses_kernels:
+            from . import mixed
+            return mixed.pdf(self, wi, wo)
         from . import _kernels
         wi, wo, shape = flat_pairs(wi, wo)
         out = np.empty(wi.shape[0])
@@ -415,16 +430,13 @@ class Model(Component):
 
         For a delta lobe the weight is its reflectance divided by the probability of picking it.
         """
+        wi, u, shape = sample_inputs(wi, u)
+        if not self.uses_kernels:
+            from . import mixed
+            wo, pdf, weight = mixed.sample_weighted(self, wi, u)
+            return (wo.reshape(shape + (3,)), pdf.reshape(shape),
+                    weight.reshape(shape + (weight.shape[-1],)))
         from . import _kernels
-        wi = direction_array(wi, "wi")
-        u = np.asarray(u, dtype=np.float64)
-        if u.shape[-1:] != (2,):
-            raise InputError(f"u must be shaped (..., 2), got shape {u.shape}")
-        if np.any(~np.isfinite(u)) or np.any(u < 0.0) or np.any(u >= 1.0):
-            raise InputError("u must hold numbers in [0, 1)")
-        shape = np.broadcast_shapes(wi.shape[:-1], u.shape[:-1])
-        wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
-        u = np.ascontiguousarray(np.broadcast_to(u, shape + (2,)).reshape(-1, 2))
         c = self._compiled()
         wo = np.empty_like(wi)
         pdf = np.empty(wi.shape[0])
@@ -450,7 +462,11 @@ class Model(Component):
             With ``return_error``: the summed panel error estimates, a conservative estimate of
             the absolute error.
         """
-        out, err, _ = self._albedo_cubature(wi, tol, max_panels)
+        if not self.uses_kernels:
+            from . import mixed
+            out, err = mixed.albedo(self, wi, tol, max_panels)
+        else:
+            out, err, _ = self._albedo_cubature(wi, tol, max_panels)
         return (out, err) if return_error else out
 
     def _albedo_cubature(self, wi, tol=1e-5, max_panels=1024):
@@ -483,6 +499,21 @@ class Model(Component):
         work[first] = panels
         return (out[shared].reshape(shape + (c.nch,)), err[shared].reshape(shape + (c.nch,)),
                 work.reshape(shape))
+
+
+def sample_inputs(wi, u):
+    """Validated ``wi`` and uniform numbers ``u`` broadcast together and flattened:
+    ``(wi (n, 3), u (n, 2), shape)``."""
+    wi = direction_array(wi, "wi")
+    u = np.asarray(u, dtype=np.float64)
+    if u.shape[-1:] != (2,):
+        raise InputError(f"u must be shaped (..., 2), got shape {u.shape}")
+    if np.any(~np.isfinite(u)) or np.any(u < 0.0) or np.any(u >= 1.0):
+        raise InputError("u must hold numbers in [0, 1)")
+    shape = np.broadcast_shapes(wi.shape[:-1], u.shape[:-1])
+    wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
+    u = np.ascontiguousarray(np.broadcast_to(u, shape + (2,)).reshape(-1, 2))
+    return wi, u, shape
 
 
 class Sum(Model):

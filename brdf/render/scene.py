@@ -563,6 +563,8 @@ class _MaterialTable:
             row = np.zeros(11, dtype=np.int64)
             row[[M.K0, M.O0, M.P0, M.B0]] = len(kinds), len(offs), len(params), len(bind)
             row[M.GRID] = -1
+            if isinstance(b, Model) and not b.uses_kernels:
+                b = _tabulated(b, i, mat)
             if isinstance(b, Model):
                 if b.channels not in (1, 3):
                     raise InputError(f"material {i}: the renderer works in RGB; the model has "
@@ -600,6 +602,42 @@ class _MaterialTable:
                 np.array(bind, np.int64).reshape(-1, 4),
                 np.concatenate(tex) if tex else np.zeros(1),
                 np.array(texmeta, np.int64).reshape(-1, 4))
+
+
+class _RGB:
+    """A one-channel model seen as RGB (grey), for :meth:`MerlTable.from_table`."""
+
+    channels = 3
+    metadata = None
+
+    def __init__(self, model):
+        self.model, self.name = model, str(model)
+
+    def eval(self, wi, wo):
+        f = self.model.eval(wi, wo)
+        return np.broadcast_to(f, f.shape[:-1] + (3,))
+
+    def __str__(self):
+        return self.name
+
+
+def _tabulated(model, i, mat):
+    """A model with custom (numpy) lobes, which have no kernels, tabulated on the MERL grid: the
+    renderer then treats it as a measured table (trilinear lookups, tabulated sampling). The grid
+    is isotropic and stores one value per reciprocal pair; sharp lobes lose detail below its
+    resolution (1 degree in theta_d and phi_d, finer near the specular peak in theta_h)."""
+    from ..io.merl import MerlTable
+    if mat.textures:
+        raise InputError(f"material {i}: {model} has custom lobes, which render through a "
+                         "MERL-grid table, and textures apply to model parameters only")
+    if model.is_anisotropic:
+        raise InputError(f"material {i}: {model} is anisotropic (or its custom lobes do not "
+                         "declare isotropic = True); the renderer tabulates custom lobes on the "
+                         "isotropic MERL grid")
+    if model.channels not in (1, 3):
+        raise InputError(f"material {i}: the renderer works in RGB; the model has "
+                         f"{model.channels} channels")
+    return MerlTable.from_table(model if model.channels == 3 else _RGB(model))
 
 
 def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):

@@ -1,0 +1,67 @@
+"""Fitting models that hold numpy-written lobes (:class:`~brdf.models.custom.CustomModel`).
+
+:class:`Problem` scores parameter vectors in compiled passes over the lobes' kernels, which a
+custom lobe does not have. :class:`MixedProblem` keeps everything else of it (free parameters,
+bounds, log scaling, the x -> model map, the loss terms) and evaluates the model instead: the
+model rebuilt from x, its ``eval`` on the samples (built-in lobes still through their kernels),
+scored in numpy (:func:`brdf.fitting.losses.channel_values`). Its gradient comes from central
+differences (:meth:`Problem.difference_rows`, 2 G + 1 evaluations for G groups of coordinates),
+so the gradient-based optimizers (LD_LBFGS, the default, and LD_SLSQP) work unchanged, as do the
+derivative-free and global ones, and ``brdf.mcmc``. :func:`problem_for` picks the class.
+"""
+
+import numpy as np
+
+from ..models.mixed import serial_below
+from . import losses
+from .problem import Problem
+
+__all__ = ["MixedProblem", "problem_for"]
+
+
+def problem_for(data, spec, **options):
+    """The fitting problem of ``spec`` on ``data``: a :class:`Problem` when every lobe has
+    kernels, else a :class:`MixedProblem` (same arguments as :class:`Problem`)."""
+    from ..spec import parse
+    model = parse(spec)
+    return (Problem if model.uses_kernels else MixedProblem)(data, model, **options)
+
+
+class MixedProblem(Problem):
+    """A :class:`Problem` whose model holds custom lobes: losses from ``model(x).eval``, the
+    gradient from central differences (see the module docstring)."""
+
+    def model_values(self, x):
+        """The model's values ``(n, C)`` at the samples for parameter vector ``x``."""
+        s = self.samples
+        model = self.model(x)
+        with serial_below(len(s.wi)):  # a fit evaluates a small table thousands of times
+            f = model.eval(s.wi, s.wo)
+        return np.broadcast_to(f, s.values.shape)
+
+    @staticmethod
+    def _score(f, terms):
+        """Per-channel loss ``(C,)`` of model values ``f`` under ``terms``."""
+        return losses.channel_values(terms, f)
+
+    def channel_losses(self, X, terms=None):
+        """Per-channel contributions ``(K, C)`` to the loss of each row of ``X``."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        t = terms or self.terms
+        return np.array([self._score(self.model_values(x), t) for x in X])
+
+    def loss_and_gradient(self, x, terms=None):
+        """``(loss, gradient)`` at ``x``; the gradient by central differences."""
+        rows, width = self.difference_rows(np.asarray(x, dtype=float))
+        out = self.channel_losses(rows, terms)
+        return float(out[0].sum()), self.difference_jacobian(out, width).sum(axis=0)
+
+    def metrics(self, x):
+        """Every metric the data allow at ``x``, from one evaluation of the model."""
+        s = self.samples
+        names = [n for n in losses.LOSSES if n != "chi-square" or s.sigma is not None]
+        f = self.model_values(x)
+        return {name: float(self._score(f, self.terms if name == self.loss_name
+                                        else losses.terms(name, s, len(self.free))).sum())
+                for name in names}
+
