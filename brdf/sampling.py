@@ -6,7 +6,7 @@ Scalar numba kernels: each takes uniform numbers ``u1, u2`` in ``[0, 1)`` and re
 
 import math
 
-from ._jit import inline_kernel, kernel
+from ._jit import kernel
 
 INV_PI = 1.0 / math.pi
 
@@ -77,7 +77,7 @@ def reflect_about(ix, iy, iz, hx, hy, hz):
     return d * hx - ix, d * hy - iy, d * hz - iz
 
 
-@inline_kernel
+@kernel
 def half_unit(ix, iy, iz, ox, oy, oz):
     """Normalised half vector and the cosine ``i.h``; a zero vector when ``i = -o``."""
     hx = ix + ox

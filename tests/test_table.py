@@ -106,6 +106,18 @@ def test_anisotropic_table_uses_four_dimensions():
     assert np.median(err) < 0.1
 
 
+@pytest.mark.parametrize("dim", [2, 3, 4])
+def test_barycentric_transforms_are_scipys(dim):
+    from scipy.spatial import Delaunay
+    from brdf.triangulation import _barycentric_transforms
+    points = np.random.default_rng(dim).random((400, dim))
+    points[:4] = points[4]  # repeated points: flat simplices, NaN in both
+    tri = Delaunay(points, qhull_options="QJ Qbb")
+    mine, theirs = _barycentric_transforms(tri.points, tri.simplices), tri.transform
+    np.testing.assert_array_equal(np.isnan(mine), np.isnan(theirs))
+    np.testing.assert_allclose(mine, theirs, rtol=1e-9, atol=1e-9)
+
+
 def test_eval_is_reciprocal_even_when_the_samples_are_not():
     """eval averages the interpolant at (wi, wo) and (wo, wi)."""
     t = brdf.measure("phong(ks=1, n=5)", "grid:10,30")

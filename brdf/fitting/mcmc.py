@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._threads import serial_below
 from ..errors import InputError
 
 __all__ = ["mcmc", "Posterior", "LogPosterior", "NOISE", "TAU_MULTIPLE", "PERCENTILES"]
@@ -94,7 +95,8 @@ class LogPosterior:
             return out
         Xi = X[inside]
         m = len(self.problem.names)
-        loss = self.problem.channel_losses(Xi[:, :m], self.terms).sum(axis=1)
+        with serial_below(len(Xi) * len(self.problem.samples.wi)):
+            loss = self.problem.channel_losses(Xi[:, :m], self.terms).sum(axis=1)
         if self.known_sigma:
             out[inside] = -0.5 * loss * self.norm                  # chi^2 = loss x (n - k)
         else:

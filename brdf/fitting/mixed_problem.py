@@ -12,7 +12,7 @@ derivative-free and global ones, and ``brdf.mcmc``. :func:`problem_for` picks th
 
 import numpy as np
 
-from ..models.mixed import serial_below
+from .._threads import serial_below
 from . import losses
 from .problem import Problem
 

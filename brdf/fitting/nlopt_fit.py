@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._threads import serial_below
 from ..errors import InputError
 from . import losses
 from .mixed_problem import problem_for
@@ -211,10 +212,11 @@ class _Objective:
 
     def __call__(self, x, grad):
         self.calls += 1
-        if grad.size:
-            loss, grad[:] = self.problem.loss_and_gradient(x)
-        else:
-            loss = self.problem.loss(x)
+        with serial_below(len(self.problem.samples.wi)):
+            if grad.size:
+                loss, grad[:] = self.problem.loss_and_gradient(x)
+            else:
+                loss = self.problem.loss(x)
         self.tracker.record(x, "loss", loss)
         if self.progress is not None:
             self.progress.update(1)

@@ -50,7 +50,7 @@ class AshikhminShirley(Model):
 
 # --- kernels (layout: rd[C], rs[C], nu, nv) --------------------------------------------------
 
-@inline_kernel
+@kernel
 def diffuse_factor(cos):
     """1 - (1 - cos / 2)^5, the angular factor of the diffuse term (eq. 5)."""
     m = 1.0 - 0.5 * cos
@@ -58,7 +58,7 @@ def diffuse_factor(cos):
     return 1.0 - m2 * m2 * m
 
 
-@inline_kernel
+@kernel
 def half_exponent_d(nu, nv, hx, hy):
     """nu cos^2 phi_h + nv sin^2 phi_h (eq. 4), any value at h = n, where (n.h)^e = 1, and its
     derivatives cos^2 phi_h in nu and sin^2 phi_h in nv."""
@@ -70,7 +70,7 @@ def half_exponent_d(nu, nv, hx, hy):
     return nu * cx + nv * cy, cx, cy
 
 
-@inline_kernel
+@kernel
 def half_pdf_d(nu, nv, hx, hy, hz):
     """Density of the half vector in solid angle (eq. 8) and its derivatives in nu and nv:
     d ln p_h / d nu = 1 / (2 (nu + 1)) + ln(n.h) de/dnu, likewise nv."""
@@ -82,7 +82,7 @@ def half_pdf_d(nu, nv, hx, hy, hz):
     return p, p * (0.5 / (nu + 1.0) + lh * e_u), p * (0.5 / (nv + 1.0) + lh * e_v)
 
 
-@inline_kernel
+@kernel
 def half_pdf(nu, nv, hx, hy, hz):
     """Density of the half vector in solid angle (eq. 8)."""
     return half_pdf_d(nu, nv, hx, hy, hz)[0]

@@ -55,7 +55,7 @@ class BlinnPhong(Model):
 
 # --- lobe kernels (layout: ks[C], n, normalization) ------------------------------------------
 
-@inline_kernel
+@kernel
 def normalization_d(n, which):
     """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``),
     and dN/dn."""
@@ -67,7 +67,7 @@ def normalization_d(n, which):
     return v, v * (1.0 / (n + 2.0) + 1.0 / (n + 4.0) - (1.0 - 0.5 * math.log(2.0) * p) / (p + n))
 
 
-@inline_kernel
+@kernel
 def normalization(n, which):
     """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``)."""
     return normalization_d(n, which)[0]

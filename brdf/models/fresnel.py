@@ -6,7 +6,7 @@ kernels a term is a block of ``1 + 2 C`` floats: a mode code, then two per-chann
 
 import math
 
-from .._jit import inline_kernel
+from .._jit import inline_kernel, kernel
 from ._registry import FRESNEL
 from .base import Component, Param
 
@@ -67,7 +67,7 @@ class Conductor(Fresnel):
               Param("k", 3.0, (0.0, 20.0), per_channel=True, doc="extinction coefficient"))
 
 
-@inline_kernel
+@kernel
 def schlick_d(f0, cos_i):
     """Schlick's F and dF/dF0 = 1 - (1 - cos)^5 (Schlick 1994, "An Inexpensive BRDF Model for
     Physically-based Rendering", eq. 15, differentiated)."""
@@ -77,13 +77,13 @@ def schlick_d(f0, cos_i):
     return f0 + (1.0 - f0) * m5, 1.0 - m5
 
 
-@inline_kernel
+@kernel
 def schlick(f0, cos_i):
     """Schlick 1994, "An Inexpensive BRDF Model for Physically-based Rendering", eq. 15."""
     return schlick_d(f0, cos_i)[0]
 
 
-@inline_kernel
+@kernel
 def dielectric_reflectance_d(cos_i, eta):
     """F and dF/deta of Walter et al. 2007, eq. 22 (total internal reflection gives 1, dF 0).
 
@@ -104,13 +104,13 @@ def dielectric_reflectance_d(cos_i, eta):
     return 0.5 * a * a * (1.0 + b * b), (a * da * (1.0 + b * b) + a * a * b * db) * eta / g
 
 
-@inline_kernel
+@kernel
 def dielectric_reflectance(cos_i, eta):
     """Walter et al. 2007, eq. 22 (total internal reflection gives 1)."""
     return dielectric_reflectance_d(cos_i, eta)[0]
 
 
-@inline_kernel
+@kernel
 def conductor_reflectance_d(cos_i, eta, k):
     """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor) and its
     partial derivatives in eta and k, by differentiating each intermediate of that formula
@@ -146,7 +146,7 @@ def conductor_reflectance_d(cos_i, eta, k):
             0.5 * (rs_k * ratio + rs * ratio_k + rs_k))
 
 
-@inline_kernel
+@kernel
 def conductor_reflectance(cos_i, eta, k):
     """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor)."""
     return conductor_reflectance_d(cos_i, eta, k)[0]

@@ -26,7 +26,7 @@ class Lambert(Model):
                     doc="directional-hemispherical reflectance", fit_bounds=(0.0, 1.0)),)
 
 
-@inline_kernel
+@kernel
 def _lobe(iz, oz):
     """f per unit albedo: 1 / pi above the horizon (a select keeps the array loop vectorised)."""
     return INV_PI if (iz > 0.0 and oz > 0.0) else 0.0

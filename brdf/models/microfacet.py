@@ -72,7 +72,7 @@ class BeckmannModel(Microfacet):
 
 # --- distributions ---------------------------------------------------------------------------
 
-@inline_kernel
+@kernel
 def ndf_d(dist, ax, ay, hx, hy, hz):
     """Normal distribution D(h) in 1/sr (integral of D cos = 1) and its partial derivatives in
     alpha_x and alpha_y; h need not be normalised."""
@@ -90,13 +90,13 @@ def ndf_d(dist, ax, ay, hx, hy, hz):
     return d, d * (2.0 * sx * sx / hz2 - 1.0) / ax, d * (2.0 * sy * sy / hz2 - 1.0) / ay
 
 
-@inline_kernel
+@kernel
 def ndf(dist, ax, ay, hx, hy, hz):
     """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
     return ndf_d(dist, ax, ay, hx, hy, hz)[0]
 
 
-@inline_kernel
+@kernel
 def smith_lambda_d(dist, ax, ay, x, y, z):
     """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX) and
     its partial derivatives in alpha_x and alpha_y."""
@@ -116,13 +116,13 @@ def smith_lambda_d(dist, ax, ay, x, y, z):
     return 0.5 * (math.erf(a) - 1.0) + e / (2.0 * a * SQRT_PI), w * ax * x * x, w * ay * y * y
 
 
-@inline_kernel
+@kernel
 def smith_lambda(dist, ax, ay, x, y, z):
     """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
     return smith_lambda_d(dist, ax, ay, x, y, z)[0]
 
 
-@inline_kernel
+@kernel
 def ggx_root_d(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z),
     and its partial derivatives in alpha_x and alpha_y."""
@@ -130,7 +130,7 @@ def ggx_root_d(ax, ay, x, y, z):
     return r, ax * x * x / r, ay * y * y / r  # the root of Heitz 2014, eq. 86, differentiated
 
 
-@inline_kernel
+@kernel
 def ggx_root(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z)."""
     return ggx_root_d(ax, ay, x, y, z)[0]
@@ -144,7 +144,7 @@ def g1(dist, ax, ay, x, y, z):
     return 1.0 / (1.0 + smith_lambda(dist, ax, ay, x, y, z))
 
 
-@inline_kernel
+@kernel
 def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon, and its partial derivatives in
     alpha_x and alpha_y.
@@ -175,7 +175,7 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     return v, -v * (li_x + lo_x) / s, -v * (li_y + lo_y) / s
 
 
-@inline_kernel
+@kernel
 def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon (see :func:`visibility_d`)."""
     return visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)[0]
@@ -342,7 +342,7 @@ def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
             (d_y * v + d * v_y) if above else 0.0, hx, hy, hz)
 
 
-@inline_kernel
+@kernel
 def _cos_d(ix, iy, iz, hx, hy, hz):
     """wi.h with h the unit half vector of the unnormalised (hx, hy, hz)."""
     return (ix * hx + iy * hy + iz * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)

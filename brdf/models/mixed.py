@@ -13,37 +13,13 @@ formulas. Sampling follows the kernels' mixture rule (``_kernels.material_sample
 Hints change the variance of the estimates, never their expected values.
 """
 
-import contextlib
-
 import numpy as np
 
+from .._threads import serial_below
 from ..geometry import direction_array, flat_pairs
 from .custom import CustomModel
 
-__all__ = ["eval", "pdf", "sample_weighted", "albedo", "selection", "serial_below",
-           "SERIAL_SAMPLES"]
-
-#: Calls of the built-in lobes' kernels on fewer directions run on one thread (see
-#: :func:`serial_below`).
-SERIAL_SAMPLES = 1 << 15
-
-
-@contextlib.contextmanager
-def serial_below(n):
-    """Run this thread's kernel calls on one thread while they handle ``n`` < SERIAL_SAMPLES
-    directions: starting numba's threads then costs more than the work (``lambert + ggx`` on
-    1,305 pairs: 23 ms on 2 threads, 0.17 ms on one, 2 shared cores under load). numba's thread
-    count is per calling thread, so other threads are unaffected."""
-    if n >= SERIAL_SAMPLES:
-        yield
-        return
-    import numba
-    before = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
+__all__ = ["eval", "pdf", "sample_weighted", "albedo", "selection"]
 
 
 def _parts(model):

@@ -78,7 +78,7 @@ class ModifiedPhong(Model):
 
 # --- lobe kernels (layout: ks[C], n) ---------------------------------------------------------
 
-@inline_kernel
+@kernel
 def cos_alpha(ix, iy, iz, ox, oy, oz):
     """Cosine between ``wo`` and the mirror direction (-ix, -iy, iz) of ``wi``."""
     return -ix * ox - iy * oy + iz * oz

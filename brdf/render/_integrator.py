@@ -26,7 +26,7 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 # --- random numbers ---------------------------------------------------------------------------
 
-@inline_kernel
+@kernel
 def _mix(z):
     """SplitMix64's output function (Steele et al. 2014, "Fast Splittable Pseudorandom Number
     Generators", OOPSLA; constants of Vigna's reference code)."""
@@ -35,7 +35,7 @@ def _mix(z):
     return z ^ (z >> np.uint64(31))
 
 
-@inline_kernel
+@kernel
 def _stream(seed, pixel, s):
     """Starting state of the stream of sample s of a pixel: hashes of the three, chained."""
     return _mix(_mix(_mix(np.uint64(seed) + _GOLDEN) ^ np.uint64(pixel)) ^ np.uint64(s))
@@ -88,7 +88,7 @@ def _surface(prim, sph, quad, tri, tri_n, tri_uv, i, a, b, px, py, pz):
     return nx, ny, nz, sx, sy, sz, e1x, e1y, e1z, u, v
 
 
-@inline_kernel
+@kernel
 def _frame(sx, sy, sz, tx, ty, tz):
     """Orthonormal tangent and bitangent about the shading normal s, the tangent following t
     (Gram-Schmidt), any tangent where t is parallel to s."""
@@ -102,7 +102,7 @@ def _frame(sx, sy, sz, tx, ty, tz):
     return tx, ty, tz, sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
 
 
-@inline_kernel
+@kernel
 def _offset(px, py, pz, nx, ny, nz, side):
     """Ray origin pushed off the surface along the normal, to the side ``side`` (+1 or -1), by
     a margin relative to the point's magnitude (avoids self-intersection)."""
@@ -110,7 +110,7 @@ def _offset(px, py, pz, nx, ny, nz, side):
     return px + side * eps * nx, py + side * eps * ny, pz + side * eps * nz
 
 
-@inline_kernel
+@kernel
 def _power(a, b):
     """Veach's power heuristic with beta = 2 (Veach 1997, thesis, eq. 9.13) for density a."""
     if a == math.inf:

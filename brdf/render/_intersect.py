@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from .._jit import inline_kernel, kernel
+from .._jit import inline_kernel
 
 SPHERE, QUAD, TRIANGLE = 0, 1, 2
 #: Primitives per BVH leaf at most.

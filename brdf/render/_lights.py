@@ -19,7 +19,7 @@ Fields of ``lf`` by type (positions and directions in world space, colours RGB):
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import inline_kernel
 from ._intersect import SPHERE
 from .. import sampling
 

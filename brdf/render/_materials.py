@@ -82,14 +82,14 @@ def material_params(mint, params, bind, tex, texmeta, m, u, v, scratch):
 
 # --- measured tables: tabulated importance sampling --------------------------------------------
 
-@inline_kernel
+@kernel
 def _tab_bin(vz):
     """Incidence bin of cos(theta_v) = vz (bins uniform in theta)."""
     theta = math.acos(min(max(vz, 0.0), 1.0))
     return min(int(theta / (0.5 * math.pi) * TAB_THETA_I), TAB_THETA_I - 1)
 
 
-@inline_kernel
+@kernel
 def _cell_solid_angle(i):
     t0 = i * (0.5 * math.pi) / TAB_THETA
     t1 = (i + 1) * (0.5 * math.pi) / TAB_THETA
