@@ -46,6 +46,27 @@ def _bundled(name):
 DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
 
 
+def _compile_renderer():
+    """Render a tiny sphere of a parametric and of a measured material, for the kernels alone:
+    run in a second process by :func:`run`, it leaves them in numba's disk cache."""
+    import brdf
+    from .io.merl import MerlTable
+    from .render import builtin, render
+    for material in (brdf.parse("lambert + ggx"), MerlTable(np.full((3, 90, 90, 180), 0.1))):
+        render(builtin("sphere", material), spp=1, size=(4, 4), seed=0)
+
+
+def _start_compiling_renderer():
+    """On a cold cache the renderer's kernels take minutes to compile; a second process
+    compiles them on the other core while this one fits (from the cache it only loads them).
+    The demo renders from the cache once that process is done, or compiles what it still
+    lacks itself: either way the images are the same."""
+    import multiprocessing
+    worker = multiprocessing.get_context("spawn").Process(target=_compile_renderer, daemon=True)
+    worker.start()
+    return worker
+
+
 class _Stage:
     """Times a stage and reports it on the progress line."""
 
@@ -116,6 +137,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     log = (lambda s: print(f"brdf-fit demo: {s}", file=sys.stderr)) if progress else (lambda s: None)
     out = _prepare(outdir, force)
     t_start = time.perf_counter()
+    compiling = _start_compiling_renderer()
     size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
     with _Stage(log, "read and synthesise") as st:
@@ -145,6 +167,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 entry["posterior"] = post.to_dict()
                 entry["images"]["posterior (corner)"] = f"{name}-corner.png"
         with _Stage(log, f"{name}: validation renders"):
+            compiling.join()
             images = {}
             for label, material in (("measured", table), ("fitted", best.model)):
                 r = render(builtin("sphere", material), spp=spp, size=size, seed=seed)
