@@ -46,23 +46,15 @@ def _bundled(name):
 DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
 
 
-def _compile_renderer():
-    """Render a tiny sphere of a parametric and of a measured material, for the kernels alone:
-    run in a second process by :func:`run`, it leaves them in numba's disk cache."""
-    import brdf
-    from .io.merl import MerlTable
-    from .render import builtin, render
-    for material in (brdf.parse("lambert + ggx"), MerlTable(np.full((3, 90, 90, 180), 0.1))):
-        render(builtin("sphere", material), spp=1, size=(4, 4), seed=0)
-
-
 def _start_compiling_renderer():
     """On a cold cache the renderer's kernels take minutes to compile; a second process
     compiles them on the other core while this one fits (from the cache it only loads them).
     The demo renders from the cache once that process is done, or compiles what it still
     lacks itself: either way the images are the same."""
     import multiprocessing
-    worker = multiprocessing.get_context("spawn").Process(target=_compile_renderer, daemon=True)
+    from .precompile import _run
+    worker = multiprocessing.get_context("spawn").Process(target=_run, args=(["render"],),
+                                                          daemon=True)
     worker.start()
     return worker
 

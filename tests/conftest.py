@@ -10,3 +10,13 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 settings.register_profile("brdf", derandomize=True, deadline=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "brdf"))
+
+
+def pytest_configure(config):
+    """Under pytest-xdist (``-n``), compile numba's kernels before the workers start, the
+    groups side by side in two processes (brdf.precompile): otherwise every worker compiles
+    the same kernels itself when its tests first call them, which on a cold cache is most of
+    the suite's time. On a warm cache this only starts two processes."""
+    if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
+        from brdf.precompile import precompile
+        precompile(processes=2)

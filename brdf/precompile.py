@@ -1,0 +1,114 @@
+"""Compile the library's numba kernels ahead of use, several groups at once.
+
+numba compiles a kernel the first time it is called and keeps the machine code in its disk
+cache; on a cold cache that is minutes of work on one core. :func:`precompile` runs small calls
+of every kernel group in separate processes, so the groups compile side by side, and later
+processes (a test suite's workers, the demo's renders, a batch of fits) load them from the cache.
+On a warm cache it costs the processes' start-up only.
+
+    python -m brdf.precompile [GROUP ...]
+"""
+
+import sys
+import time
+
+import numpy as np
+
+__all__ = ["GROUPS", "precompile"]
+
+_SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
+
+
+def _pairs(n=64):
+    from .geometry import directions_from_degrees
+    t = np.linspace(0.0, 80.0, n)
+    return directions_from_degrees(t, 0.0 * t), directions_from_degrees(t[::-1], 180.0 + t)
+
+
+def _models():
+    """Evaluation, sampling, albedo and the physical checks of parametric models."""
+    import brdf
+    model = brdf.parse(_SPEC)
+    wi, wo = _pairs()
+    model.eval(wi, wo), model.pdf(wi, wo), model.sample(wi, np.full((len(wi), 2), 0.3))
+    brdf.check(model)
+
+
+def _fitting():
+    """Losses with and without gradients, and the MCMC likelihood."""
+    import brdf
+    table = brdf.measure("lambert(albedo=0.5) + ggx(alpha=0.3)", "random:300", "relative:0.02")
+    brdf.fit(table, "lambert + ggx(alpha=0.5)")
+    brdf.fit(table, "lambert + ggx(alpha=0.5)", optimizer="LN_BOBYQA")
+    brdf.mcmc(table, "lambert(albedo=0.5)", max_steps=200, progress=False)
+
+
+def _tables():
+    """Measured tables: the MERL grid, scattered interpolation and checks of a table."""
+    import brdf
+    wi, wo = _pairs()
+    for geometry in ("merl", "random:400"):
+        table = brdf.measure(_SPEC, geometry)
+        table.eval(wi, wo)
+    brdf.check(table, theta_steps=6, anisotropic_steps=(4, 2))
+
+
+def _render():
+    """The path tracer with a parametric and a measured material, and the Cornell box."""
+    import brdf
+    from .io.merl import MerlTable
+    from .render import builtin, render
+    for material in (brdf.parse(_SPEC), MerlTable(np.full((3, 90, 90, 180), 0.1))):
+        render(builtin("sphere", material), spp=1, size=(4, 4), seed=0)
+    render(builtin("cornell"), spp=1, size=(4, 4), seed=0)
+
+
+#: Kernel groups by name, each compiled by small calls of the public functions that use them.
+GROUPS = {"models": _models, "fitting": _fitting, "tables": _tables, "render": _render}
+
+
+def _run(names):
+    """Run the groups ``names`` in this process; seconds each took."""
+    out = {}
+    for name in names:
+        start = time.perf_counter()
+        GROUPS[name]()
+        out[name] = time.perf_counter() - start
+    return out
+
+
+def precompile(groups=tuple(GROUPS), processes=2):
+    """Compile the kernels of ``groups`` into numba's disk cache, in ``processes`` processes.
+
+    Parameters
+    ----------
+    groups : sequence of str
+        Keys of :data:`GROUPS`.
+    processes : int
+        Worker processes; the groups are dealt out to them in order (models and fitting
+        together share most of their kernels, as do tables and the renderer).
+
+    Returns
+    -------
+    dict
+        Seconds each group took (compiling, or loading from the cache).
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    import multiprocessing
+    unknown = [g for g in groups if g not in GROUPS]
+    if unknown:
+        raise ValueError(f"unknown kernel group(s) {', '.join(unknown)}; groups: "
+                         f"{', '.join(GROUPS)}")
+    processes = max(1, min(int(processes), len(groups)))
+    share = -(-len(groups) // processes)
+    batches = [list(groups[i:i + share]) for i in range(0, len(groups), share)]
+    seconds = {}
+    with ProcessPoolExecutor(len(batches), mp_context=multiprocessing.get_context("spawn")) as pool:
+        for done in pool.map(_run, batches):
+            seconds.update(done)
+    return seconds
+
+
+if __name__ == "__main__":
+    took = precompile(tuple(sys.argv[1:]) or tuple(GROUPS))
+    print(", ".join(f"{name} {s:.1f} s" for name, s in took.items()))
