@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-__all__ = ["GROUPS", "precompile"]
+__all__ = ["GROUPS", "precompile", "main"]
 
 _SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
 
@@ -95,9 +95,10 @@ def precompile(groups=tuple(GROUPS), processes=2):
     """
     from concurrent.futures import ProcessPoolExecutor
     import multiprocessing
+    from .errors import InputError
     unknown = [g for g in groups if g not in GROUPS]
     if unknown:
-        raise ValueError(f"unknown kernel group(s) {', '.join(unknown)}; groups: "
+        raise InputError(f"unknown kernel group(s) {', '.join(unknown)}; groups: "
                          f"{', '.join(GROUPS)}")
     processes = max(1, min(int(processes), len(groups)))
     share = -(-len(groups) // processes)
@@ -109,6 +110,18 @@ def precompile(groups=tuple(GROUPS), processes=2):
     return seconds
 
 
-if __name__ == "__main__":
-    took = precompile(tuple(sys.argv[1:]) or tuple(GROUPS))
+def main(argv=None):
+    """``python -m brdf.precompile [GROUP ...]``: 0, or 2 with one line for an unknown group."""
+    from .errors import InputError
+    names = tuple(sys.argv[1:] if argv is None else argv) or tuple(GROUPS)
+    try:
+        took = precompile(names)
+    except InputError as exc:
+        print(f"brdf.precompile: error: {exc}", file=sys.stderr)
+        return 2
     print(", ".join(f"{name} {s:.1f} s" for name, s in took.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

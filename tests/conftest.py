@@ -20,3 +20,9 @@ def pytest_configure(config):
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
         from brdf.precompile import precompile
         precompile(processes=2)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Slow tests first: under xdist the workers then end on short tests together, instead of
+    one worker finishing a long test while the other waits."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

@@ -18,7 +18,10 @@ def results(tmp_path_factory):
     return out, summary
 
 
+# one worker runs both tests of the demo (README's test command uses --dist loadgroup), so the
+# module's fixture runs the demo once
 @pytest.mark.slow
+@pytest.mark.xdist_group("demo")
 def test_demo_writes_every_stage(results):
     out, summary = results
     assert set(summary["datasets"]) == {"paper-white", "synthetic-merl"}
@@ -41,6 +44,7 @@ def test_demo_writes_every_stage(results):
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("demo")
 def test_report_in_a_headless_browser(results):
     out, summary = results
     browser = shutil.which("chromium") or shutil.which("chromium-browser")
