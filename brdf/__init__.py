@@ -16,8 +16,9 @@ from .spec import from_dict, from_json, parse  # noqa: E402
 from .models.custom import CustomModel, register_model, unregister_model  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "mcmc",
-           "CustomModel", "register_model", "unregister_model", "compare", "export", "batch", "load_report", "Table", "models", "geometry", "radiometry", "io",
+           "measure", "fit", "mcmc", "compare", "export", "batch", "load_report",
+           "CustomModel", "register_model", "unregister_model", "Table", "models", "geometry",
+           "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
 
 

@@ -25,7 +25,8 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["LOSSES", "DEFAULT_CUTOFF", "LOG_OFFSET", "RELATIVE_FLOOR", "SIGMA_FLOOR", "Samples",
-           "Terms", "prepare", "sample_weights", "merl_solid_angles", "terms", "evaluate", "channel_values",
+           "Terms", "prepare", "sample_weights", "merl_solid_angles", "terms", "evaluate",
+           "channel_values",
            "check_loss"]
 
 #: The metrics and where they come from.

@@ -55,13 +55,3 @@ class MixedProblem(Problem):
         rows, width = self.difference_rows(np.asarray(x, dtype=float))
         out = self.channel_losses(rows, terms)
         return float(out[0].sum()), self.difference_jacobian(out, width).sum(axis=0)
-
-    def metrics(self, x):
-        """Every metric the data allow at ``x``, from one evaluation of the model."""
-        s = self.samples
-        names = [n for n in losses.LOSSES if n != "chi-square" or s.sigma is not None]
-        f = self.model_values(x)
-        return {name: float(self._score(f, self.terms if name == self.loss_name
-                                        else losses.terms(name, s, len(self.free))).sum())
-                for name in names}
-

@@ -439,7 +439,8 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         A key of :data:`OPTIMIZERS`: LD_LBFGS, LD_SLSQP (analytic gradients,
         see :class:`~brdf.fitting.problem.Problem`; central differences for models with
         custom lobes, see :class:`~brdf.fitting.mixed_problem.MixedProblem`), LN_BOBYQA,
-        LN_NELDERMEAD, LN_COBYLA (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL (global, then polished).
+        LN_NELDERMEAD, LN_COBYLA (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL
+        (global, then polished).
     starts : int
         Local optimizers: runs from the spec's values and ``starts - 1`` seeded random points
         of the box (log-uniform for log-scaled parameters); the best is kept.

@@ -461,18 +461,29 @@ class Problem:
     def metrics(self, x):
         """Every metric of :data:`brdf.fitting.losses.LOSSES` the data allow, at ``x``: the
         model is evaluated once and each metric's terms score those values."""
-        from ..models._kernels import eval_array
         names = [n for n in losses.LOSSES if n != "chi-square" or self.samples.sigma is not None]
+        f = self.model_values(x)
+        out = {}
+        for name in names:
+            t = self.terms if name == self.loss_name else losses.terms(name, self.samples,
+                                                                       len(self.free))
+            out[name] = float(self._score(f, t).sum())
+        return out
+
+    def model_values(self, x):
+        """The model's values ``(n, C)`` at the samples for parameter vector ``x``."""
+        from ..models._kernels import eval_array
         s = self.samples
         f = np.zeros(s.values.shape)
         eval_array(self._kinds, self._offsets, self.packed(x)[0], self.channels, s.wi, s.wo, f)
-        out = {}
-        for name in names:
-            t = self.terms if name == self.loss_name else losses.terms(name, s, len(self.free))
-            sums = np.zeros((-(-len(f) // BLOCK), self.channels))
-            _score_sums(f, t.scale, t.target, t.weight, t.offset, BLOCK, sums)
-            out[name] = float(sums.sum(axis=0).sum() / t.norm)
-        return out
+        return f
+
+    @staticmethod
+    def _score(f, terms):
+        """Per-channel loss ``(C,)`` of model values ``f`` under ``terms``."""
+        sums = np.zeros((-(-len(f) // BLOCK), f.shape[1]))
+        _score_sums(f, terms.scale, terms.target, terms.weight, terms.offset, BLOCK, sums)
+        return sums.sum(axis=0) / terms.norm
 
 
 @parallel_kernel

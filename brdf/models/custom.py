@@ -39,7 +39,7 @@ import numpy as np
 from ..errors import InputError, SpecError
 from ..geometry import direction_array, flat_pairs
 from ._registry import MODELS
-from .base import _GAUSS_RULES, Choice, Model, Nested, Param, sample_inputs
+from .base import _GAUSS_RULES, Choice, Model, Nested, Param, _gauss_legendre_unit, sample_inputs
 
 __all__ = ["CustomModel", "register_model", "unregister_model", "load_plugin", "plugin_sources",
            "ensure_plugins",
@@ -157,8 +157,7 @@ class CustomModel(Model):
         variance, never bias. The default is a fixed :data:`HINT_POINTS` squared Gauss rule
         over the sampler's unit square."""
         wi = np.asarray(wi, dtype=float).reshape(-1, 3)
-        xs, ws = np.polynomial.legendre.leggauss(HINT_POINTS)
-        xs, ws = 0.5 * (xs + 1.0), 0.5 * ws
+        xs, ws = _gauss_legendre_unit(HINT_POINTS)
         t1, t2 = (g.ravel() for g in np.meshgrid(xs, xs, indexing="ij"))
         w = np.outer(ws, ws).ravel()
         (u1, j1), (u2, j2) = _edge_warp(t1), _edge_warp(t2)
