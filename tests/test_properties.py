@@ -90,11 +90,29 @@ def test_energy_excess_fails_and_says_where():
     assert where["theta_o"] is None and where["channel"] == 0
     # the worst value is the albedo at the reported angle, which is the largest on the curve
     wi = spherical_to_cartesian(math.radians(where["theta_i"]), math.radians(where["phi_i"]))
-    assert abs(energy.worst - 1.0 - brdf.parse("ggx(alpha=0.5)").albedo(wi)[0]) < 1e-9
+    # far above 1, the first pass's tolerance settles the verdict
+    ggx_albedo = brdf.parse("ggx(alpha=0.5)").albedo(wi, tol=properties.VERDICT_TOL)[0]
+    assert abs(energy.worst - 1.0 - ggx_albedo) < 1e-9
     assert energy.worst == np.max(energy.data["curve"]["albedo"])
     assert energy.tolerance == pytest.approx(properties.ENERGY_TOL
                                              + energy.data["quadrature_error"])
     assert "FAIL (energy)" in str(report)
+
+
+@pytest.mark.parametrize("excess", [3e-5, -3e-5])
+def test_energy_refines_where_the_first_pass_leaves_doubt(excess):
+    # albedo 1 + excess at the worst angle: within the first pass's error estimate (~1e-4), so
+    # the verdict needs the second pass at the default tolerance (error estimate <= 1e-5)
+    wi = spherical_to_cartesian(math.radians(properties.GRAZING_DEG), 0.0)
+    exact = brdf.parse("ggx(alpha=0.5)").albedo(wi, tol=1e-8, max_panels=20000)[0]
+    rho = 1.0 - float(exact) + excess
+    energy = brdf.check(f"lambert(albedo={rho!r}) + ggx(alpha=0.5)", pairs=1000)["energy"]
+    assert energy.where["theta_i"] == properties.GRAZING_DEG
+    assert energy.passed == (excess < 0)
+    assert energy.data["quadrature_error"] <= 1e-5
+    assert abs(energy.worst - (1.0 + excess)) < 1e-5
+    # angles whose verdict was plain keep the first pass's precision
+    assert np.max(energy.data["curve"]["error"]) > 2e-5
 
 
 def test_energy_names_the_worst_channel():

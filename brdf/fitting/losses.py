@@ -201,14 +201,17 @@ def prepare(data, cutoff=DEFAULT_CUTOFF):
     sigma = None if getattr(data, "sigma", None) is None else _array(data, "sigma", len(wi))
     weights, weighting = sample_weights(data)
     lowest = math.cos(math.radians(cutoff)) - 1e-12  # theta <= cutoff, rounding allowed
-    keep = ((wi[:, 2] >= lowest) & (wo[:, 2] >= lowest) & (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
-            & np.isfinite(values).any(axis=1))
-    if not keep.any():
+    keep = (wi[:, 2] >= lowest) & (wo[:, 2] >= lowest) & (wi[:, 2] > 0.0) & (wo[:, 2] > 0.0)
+    measured = np.zeros(len(wi), dtype=bool)
+    for column in values.T:  # a column at a time: any(axis=1) is 5x slower on (N, 3)
+        measured |= np.isfinite(column)
+    # indices and take(): boolean indexing of (N, C) rows is 3x slower on MERL-size tables
+    keep = np.flatnonzero(keep & measured)
+    if not len(keep):
         raise InputError(f"fit data: no measured sample within {cutoff:g} degrees of the normal")
     w = weights[keep]
-    return Samples(np.ascontiguousarray(wi[keep]), np.ascontiguousarray(wo[keep]),
-                   np.ascontiguousarray(values[keep]),
-                   None if sigma is None else np.ascontiguousarray(sigma[keep]),
+    return Samples(wi.take(keep, axis=0), wo.take(keep, axis=0), values.take(keep, axis=0),
+                   None if sigma is None else sigma.take(keep, axis=0),
                    w / w.sum(), len(wi), cutoff, weighting)
 
 
