@@ -17,7 +17,7 @@ import os
 import re
 
 import numba
-from numba.core import caching
+from numba.core import caching, types
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
@@ -69,13 +69,48 @@ if _InTree not in caching.CacheImpl._locator_classes:
     caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
 
 
+def _without_literals(dispatcher):
+    """``dispatcher``, typed for non-literal arguments wherever a kernel calls it.
+
+    numba compiles a called function once per set of argument types, and a constant argument
+    (``nch=3``, a lobe index 0, a family code) has its own literal type: the same kernel was
+    compiled again for each mix of constants and variables its callers passed. Constants gain
+    nothing from it here, since LLVM inlines the callee and folds them all the same."""
+    resolve = dispatcher.get_call_template
+
+    def get_call_template(args, kws):
+        return resolve(tuple(types.unliteral(a) for a in args),
+                       {k: types.unliteral(v) for k, v in kws.items()})
+
+    dispatcher.get_call_template = get_call_template
+    return _inputs_as_writable(dispatcher)
+
+
+def _inputs_as_writable(dispatcher):
+    """``dispatcher``, typing a read-only array argument from Python as a writable one.
+
+    numba compiles a kernel again for each array flagged read-only (a broadcast view, a table
+    read with ``np.frombuffer``, samples a fit protects), and callers mixed both, so kernels
+    were compiled two to four times. Kernels write only the output arrays their drivers
+    allocate, never an input, so the flag changes nothing in the machine code."""
+    typeof = dispatcher.typeof_pyval
+
+    def typeof_pyval(value):
+        t = typeof(value)
+        return t.copy(readonly=False) if isinstance(t, types.Array) and not t.mutable else t
+
+    dispatcher.typeof_pyval = typeof_pyval
+    return dispatcher
+
+
 def kernel(fn):
     """Compile a scalar or serial kernel (cached, fast-math without nnan/ninf).
 
     A kernel whose arguments are all scalars needs nothing more to be fast where it is called:
     LLVM inlines it into its callers once their code is linked, and their loops still
     vectorise across it."""
-    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy")
+    return _without_literals(numba.njit(fn, cache=True, fastmath=FASTMATH,
+                                        error_model="numpy"))
 
 
 def inline_kernel(fn):
@@ -87,9 +122,11 @@ def inline_kernel(fn):
     eval: four times slower); inlined, numba drops them. Each inlined copy is typed and
     lowered again, so inlining functions of scalars as well made a cold cache compile three
     to four times longer (15 minutes on two cores) at no gain in speed."""
-    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")
+    return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy",
+                                          inline="always"))
 
 
 def parallel_kernel(fn):
     """Compile an array kernel whose ``prange`` loops run on all cores."""
-    return numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy", parallel=True)
+    return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH,
+                                          error_model="numpy", parallel=True))

@@ -391,8 +391,9 @@ class Problem:
         P = self.packed(X)
         s, t = self.samples, terms or self.terms
         blocks = -(-len(s.wi) // BLOCK)
-        lobes = np.array([np.any(P[:, a:b] != P[0, a:b], axis=1)
-                          for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
+        lobes = np.ascontiguousarray([np.any(P[:, a:b] != P[0, a:b], axis=1)
+                                      for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
+        lobes = np.ascontiguousarray(lobes)  # one kernel type, C layout, for any lobe count
         out = np.zeros((blocks, len(P), self.channels))
         _loss_sums(self._kinds, self._offsets, P, lobes, self.channels, s.wi, s.wo, t.scale,
                    t.target, t.weight, t.offset, BLOCK, out)

@@ -482,8 +482,9 @@ def _trilinear(grid, filled, wi, wo, out, inside):
             out[k, :] = 0.0
             inside[k] = False
             continue
+        # prange counts in uint64; other callers pass int64, which would compile a twin
         inside[k] = trilinear_pair(grid, filled, wi[k, 0], wi[k, 1], wi[k, 2],
-                                   wo[k, 0], wo[k, 1], wo[k, 2], out, k)
+                                   wo[k, 0], wo[k, 1], wo[k, 2], out, np.int64(k))
 
 
 @parallel_kernel
@@ -491,7 +492,7 @@ def _nearest(grid, filled, wi, wo, out, inside):
     """Value of the nearest node (the nearest valid sample where that node is missing)."""
     nch = grid.shape[3]
     for k in prange(wi.shape[0]):
-        above, u, v, w = _pair_coordinates(wi, wo, k, out, inside)
+        above, u, v, w = _pair_coordinates(wi, wo, np.int64(k), out, inside)
         if not above:
             continue
         i, j, p = _nearest_node(u, v, w, grid.shape)

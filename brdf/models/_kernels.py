@@ -338,8 +338,9 @@ def pdf_array(kinds, offs, p, nch, wi, wo, out):
 @parallel_kernel
 def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
     for k in prange(wi.shape[0]):
+        # prange counts in uint64; other callers pass int64, which would compile a twin
         ox, oy, oz, pk = material_sample(kinds, offs, p, nch, wi[k, 0], wi[k, 1], wi[k, 2],
-                                         u[k, 0], u[k, 1], weight, k)
+                                         u[k, 0], u[k, 1], weight, np.int64(k))
         wo[k, 0] = ox
         wo[k, 1] = oy
         wo[k, 2] = oz

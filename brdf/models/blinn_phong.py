@@ -131,4 +131,4 @@ def hint_(q, nch, ix, iy, iz):
     if iz <= 0.0:
         return 0.0
     n = q[nch]
-    return channel_mean(q, 0, nch) * normalization(n, q[nch + 1]) / normalization(n, EXACT)
+    return channel_mean(q, 0, nch) * normalization(n, q[nch + 1]) / normalization(n, float(EXACT))

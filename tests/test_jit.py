@@ -1,0 +1,56 @@
+"""How brdf._jit compiles: one machine-code specialisation per kernel, whatever callers pass.
+
+Each duplicate specialisation of a library kernel cost tens of seconds on a cold cache; these
+toy kernels hold the three ways they arose (literal constants, read-only arrays, prange's
+unsigned counter) to one specialisation each.
+"""
+
+import numpy as np
+from numba import prange
+
+from brdf._jit import kernel, parallel_kernel
+
+
+@kernel
+def _scaled(a, n, k):
+    return a[k] * n
+
+
+@kernel
+def _with_constants(a):
+    return _scaled(a, 3, 0)
+
+
+@kernel
+def _with_variables(a, n, k):
+    return _scaled(a, n, k)
+
+
+@parallel_kernel
+def _doubled(a, out):
+    for k in prange(a.shape[0]):
+        out[k] = 2.0 * a[k]
+
+
+def test_constant_and_variable_arguments_share_one_specialisation():
+    a = np.arange(4.0)
+    assert _with_constants(a) == _with_variables(a, 3, 0) == 0.0
+    assert _with_variables(a, 2, 3) == 6.0
+    assert len(_scaled.overloads) == 1
+    (signature,) = _scaled.signatures
+    assert "Literal" not in str(signature)
+
+
+def test_read_only_inputs_share_the_writable_specialisation():
+    a = np.arange(5.0)
+    out = np.empty(5)
+    _doubled(a, out)
+    view = a.view()
+    view.flags.writeable = False
+    for source in (view, np.broadcast_to(a, (5,))):
+        out[:] = 0.0
+        _doubled(source, out)
+        np.testing.assert_array_equal(out, 2.0 * a)
+    assert len(_doubled.overloads) == 1
+    # the arrays themselves keep their flag
+    assert not view.flags.writeable and a.flags.writeable
