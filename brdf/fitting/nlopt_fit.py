@@ -226,7 +226,8 @@ class _Objective:
 
 class _Energy:
     """nlopt vector inequality constraint: albedo(wi_j)_c - 1 <= 0 at incidence angles
-    ``angles`` (m, 2) in degrees (theta, phi), from ``Model.albedo``; the Jacobian by central
+    ``angles`` (m, 2) in degrees (theta, phi), from ``Model.albedo``; the Jacobian analytic
+    (:meth:`Problem.albedo_jacobian`) or, for delta, multi-term and custom lobes, by central
     differences (:meth:`Problem.difference_rows`)."""
 
     def __init__(self, problem, tracker, angles):
@@ -241,10 +242,13 @@ class _Energy:
 
     def __call__(self, result, x, grad):
         if grad.size:
-            rows, width = self.problem.difference_rows(x, ENERGY_STEP)
-            a = np.array([self.albedo(r) for r in rows])
-            grad[:] = self.problem.difference_jacobian(a, width).reshape(self.size, -1)
-            a = a[0]
+            exact = self.problem.albedo_jacobian(x, self.wi)
+            if exact is None:
+                rows, width = self.problem.difference_rows(x, ENERGY_STEP)
+                a = np.array([self.albedo(r) for r in rows])
+                exact = a[0], self.problem.difference_jacobian(a, width)
+            a, jac = exact
+            grad[:] = jac.reshape(self.size, -1)
         else:
             a = self.albedo(x)
         result[:] = (a - 1.0).ravel()

@@ -391,8 +391,8 @@ class Problem:
         P = self.packed(X)
         s, t = self.samples, terms or self.terms
         blocks = -(-len(s.wi) // BLOCK)
-        lobes = np.ascontiguousarray([np.any(P[:, a:b] != P[0, a:b], axis=1)
-                                      for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
+        lobes = np.array([np.any(P[:, a:b] != P[0, a:b], axis=1)
+                          for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
         lobes = np.ascontiguousarray(lobes)  # one kernel type, C layout, for any lobe count
         out = np.zeros((blocks, len(P), self.channels))
         _loss_sums(self._kinds, self._offsets, P, lobes, self.channels, s.wi, s.wo, t.scale,
@@ -450,10 +450,26 @@ class Problem:
         _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self.channels,
                             s.wi, s.wo, t.scale, t.target, t.weight, t.offset, GRADIENT_BLOCK,
                             loss, dq)
-        dq = dq.sum(axis=0) / t.norm
-        grad = np.array([dq[p.slots].sum() * (p.from_x(xi) if p.log else 1.0)  # dq/dx = q
-                         for p, xi in zip(self.free, x)])
+        grad = self._in_x(dq.sum(axis=0) / t.norm, x)
         return float(loss.sum(axis=0).sum() / t.norm), grad
+
+    def albedo_jacobian(self, x, wi):
+        """Albedo ``(m, C)`` of the model at ``x`` in directions ``wi`` (m, 3) and its Jacobian
+        ``(m, C, n)`` in x, analytic (:meth:`Model.albedo_gradient`); None for a model that is
+        not :attr:`~brdf.models.base.Model.albedo_gradient_ready`."""
+        model = self.model(x)
+        if not model.albedo_gradient_ready:
+            return None
+        a, dq = model.albedo_gradient(wi, nch=self.channels)
+        return a, self._in_x(dq, x, axis=1)
+
+    def _in_x(self, dq, x, axis=-1):
+        """Derivatives in x, on the last axis, of derivatives ``dq`` in the packed parameters
+        (on ``axis``): summed over each free parameter's slots, times dq/dx = q for the
+        log-scaled ones."""
+        dq = np.moveaxis(np.asarray(dq), axis, -1)
+        return np.stack([dq[..., p.slots].sum(axis=-1) * (p.from_x(xi) if p.log else 1.0)
+                         for p, xi in zip(self.free, np.asarray(x, dtype=float))], axis=-1)
 
     def gradient(self, x):
         """Gradient of the loss at ``x`` (analytic, see the class notes)."""

@@ -470,23 +470,17 @@ def _estimate(kind, q, nch, term, ix, iy, iz, x0, y0, h, rules, f, val, lo, e, z
 
 
 @kernel
-def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err):
-    """Adaptive cubature of one term of a lobe's albedo over its sampling square; returns the
-    number of panels used.
+def _refine(kind, q, nch, term, ix, iy, iz, rules, tol, geo, val, perr, pe, f, lo, zone, node):
+    """Adaptive cubature of one term of a lobe's albedo over its sampling square: the panels
+    ``geo[:n]`` (corner x, y and size), their values ``val`` and error estimates ``pe``;
+    returns n.
 
     Panels carry a high-order and an embedded low-order Gauss-Legendre estimate; the panel with
     the largest error estimate (see ``_estimate``) is split in four until the summed estimates
-    fall below ``tol`` times max(1, albedo) or ``capacity`` panels are used. Where the horizon
-    or a seam between pieces cuts the square (see ``_estimate``), refinement follows the cut.
+    fall below ``tol`` times max(1, albedo) or the arrays are full. Where the horizon or a seam
+    between pieces cuts the square (see ``_estimate``), refinement follows the cut.
     """
-    geo = np.empty((capacity, 3))
-    val = np.empty((capacity, nch))
-    perr = np.empty(capacity)
-    pe = np.empty((capacity, nch))
-    f = np.zeros((1, nch))
-    lo = np.empty(nch)
-    zone = np.empty((rules[0].shape[0], rules[0].shape[0]), dtype=np.int64)
-    node = np.empty((rules[0].shape[0], rules[0].shape[0], nch))
+    capacity = geo.shape[0]
     grid = 4
     n = grid * grid
     for j in range(n):
@@ -519,20 +513,72 @@ def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err)
             perr[j] = _estimate(kind, q, nch, term, ix, iy, iz, geo[j, 0], geo[j, 1], h, rules,
                                 f, val[j], lo, pe[j], zone, node)
         n += 3
+    return n
+
+
+@kernel
+def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
+    """Add the integral of df/dq_j cos(theta_o) over the outgoing hemisphere to ``dout[j, c]``
+    for the lobe's packed parameters q_j, by the high-order rule on panels ``geo[:n]`` of its
+    sampling square.
+
+    The albedo's derivative is the integral of the derivative (the hemisphere does not depend
+    on q); the lobe's sampler at the current q is a change of variables like any other, so
+    the integrand is df/dq cos / pdf at the warped nodes, on the panels refined for f itself.
+    """
+    m = xs.shape[0]
+    g = np.zeros((1, nch))
+    d = np.zeros((q.shape[0], 1, nch))
+    for j in range(n):
+        x0, y0, h = geo[j, 0], geo[j, 1], geo[j, 2]
+        for a in range(m):
+            u1, j1 = _edge_warp(x0 + h * xs[a])
+            for b in range(m):
+                u2, j2 = _edge_warp(y0 + h * xs[b])
+                ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
+                if not (pdf > 0.0 and pdf < np.inf and oz > 0.0):
+                    continue
+                lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, g, 0, d)
+                s = oz / pdf * j1 * j2 * ws[a] * ws[b] * h * h
+                for i in range(q.shape[0]):
+                    for c in range(nch):
+                        dout[i, c] += d[i, 0, c] * s
+
+
+@kernel
+def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err, dout):
+    """One term of a lobe's albedo into ``out`` and ``err`` (see ``_refine``), and with a
+    non-empty ``dout`` (P, C) its derivatives in the lobe's packed parameters (single-term,
+    non-delta lobes: see ``_gradient_over_panels``); returns the number of panels used."""
+    geo = np.empty((capacity, 3))
+    val = np.empty((capacity, nch))
+    perr = np.empty(capacity)
+    pe = np.empty((capacity, nch))
+    f = np.zeros((1, nch))
+    lo = np.empty(nch)
+    zone = np.empty((rules[0].shape[0], rules[0].shape[0]), dtype=np.int64)
+    node = np.empty((rules[0].shape[0], rules[0].shape[0], nch))
+    n = _refine(kind, q, nch, term, ix, iy, iz, rules, tol, geo, val, perr, pe, f, lo, zone,
+                node)
     for j in range(n):
         for c in range(nch):
             out[c] += val[j, c]
             err[c] += pe[j, c]
+    if dout.shape[0] > 0:
+        _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, rules[0], rules[1], dout)
     return n
 
 
 @parallel_kernel
-def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels):
+def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels, grad):
     """Directional albedo per incident direction: delta lobes exactly, others adaptively.
 
     ``panels[k]`` receives the number of cubature panels spent on direction k (each costs 49
     samples: 36 + 9 Gauss nodes and 4 corners), a measure of work that load does not skew.
+    With ``grad`` shaped (n, P, C), not (1, 0, C), it receives the derivatives in the packed
+    parameters ``p`` (models of single-term, non-delta lobes only: ``Model.albedo_gradient``).
     """
+    wanted = grad.shape[1] > 0
     for k in prange(wi.shape[0]):
         ix, iy, iz = wi[k, 0], wi[k, 1], wi[k, 2]
         for l in range(kinds.shape[0]):
@@ -542,6 +588,7 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels
                 for c in range(nch):
                     out[k, c] += delta_reflectance(kind, q, nch, c, iz)
             elif iz > 0.0:
+                dq = grad[k, offs[l]:offs[l + 1]] if wanted else grad[0, :0]
                 for term in range(lobe_terms(kind)):
                     panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
-                                              capacity, out[k], err[k])
+                                              capacity, out[k], err[k], dq)

@@ -469,10 +469,36 @@ class Model(Component):
             out, err, _ = self._albedo_cubature(wi, tol, max_panels)
         return (out, err) if return_error else out
 
-    def _albedo_cubature(self, wi, tol=1e-5, max_panels=1024):
+    @property
+    def albedo_gradient_ready(self):
+        """Whether :meth:`albedo_gradient` applies: every lobe has kernels, is not a delta
+        lobe and integrates its albedo as one term."""
+        from . import _kernels
+        return self.uses_kernels and all(
+            not _kernels.is_delta(lobe.kind) and _kernels.lobe_terms(lobe.kind) == 1
+            for lobe in self.lobes)
+
+    def albedo_gradient(self, wi, tol=1e-5, max_panels=1024, nch=None):
+        """Directional albedo ``(..., C)`` and its derivatives ``(..., P, C)`` in the packed
+        kernel parameters (``self.compile(nch).params``, P of them), from one cubature.
+
+        The derivative of the albedo is the integral of df/dp cos(theta_o), evaluated with the
+        families' analytic gradients (those fits use) on the panels :meth:`albedo` refines;
+        for :attr:`albedo_gradient_ready` models. Energy-constrained fits take their
+        constraint's Jacobian from it.
+        """
+        if not self.albedo_gradient_ready:
+            raise InputError(f"albedo_gradient: {self} has a delta, multi-term or custom lobe; "
+                             "differentiate its albedo numerically")
+        out, _, _, grad = self._albedo_cubature(wi, tol, max_panels, gradient=True, nch=nch)
+        return out, grad
+
+    def _albedo_cubature(self, wi, tol=1e-5, max_panels=1024, gradient=False, nch=None):
         """:meth:`albedo`, its error estimate, and the number of cubature panels spent on each
         direction (49 samples each; 0 where a mirror image's integral is shared): a measure of
-        the work that machine load does not skew, for ``benchmarks/bench_check.py``."""
+        the work that machine load does not skew, for ``benchmarks/bench_check.py``. With
+        ``gradient``, also the derivatives of :meth:`albedo_gradient`; ``nch`` channels
+        (default: the model's own)."""
         import numba
         from . import _kernels
         wi = direction_array(wi, "wi")
@@ -487,18 +513,24 @@ class Model(Component):
         # numba hands each thread a contiguous chunk of the directions: dealing them out like
         # cards gives every thread its share of the costly grazing ones, wherever they cluster
         deal = np.argsort(np.arange(len(first)) % numba.get_num_threads(), kind="stable")
-        c = self._compiled()
-        dealt = (np.zeros((len(first), c.nch)), np.zeros((len(first), c.nch)),
-                 np.zeros(len(first), dtype=np.int64))
+        c = self._compiled() if nch is None else self.compile(nch)
+        n = len(first)
+        dealt = (np.zeros((n, c.nch)), np.zeros((n, c.nch)), np.zeros(n, dtype=np.int64))
+        grad = np.zeros((n, len(c.params), c.nch) if gradient else (1, 0, c.nch))
         _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _GAUSS_RULES,
-                              float(tol), int(max_panels), *dealt)
+                              float(tol), int(max_panels), *dealt, grad)
         out, err, panels = (np.empty_like(a) for a in dealt)
         for mine, theirs in zip((out, err, panels), dealt):
             mine[deal] = theirs
         work = np.zeros(len(flat), dtype=np.int64)
         work[first] = panels
-        return (out[shared].reshape(shape + (c.nch,)), err[shared].reshape(shape + (c.nch,)),
-                work.reshape(shape))
+        result = (out[shared].reshape(shape + (c.nch,)), err[shared].reshape(shape + (c.nch,)),
+                  work.reshape(shape))
+        if not gradient:
+            return result
+        mine = np.empty_like(grad)
+        mine[deal] = grad
+        return result + (mine[shared].reshape(shape + grad.shape[1:]),)
 
 
 def sample_inputs(wi, u):
