@@ -46,14 +46,16 @@ def _bundled(name):
 DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
 
 
-def _start_compiling_renderer():
-    """On a cold cache the renderer's kernels take minutes to compile; a second process
-    compiles them on the other core while this one fits (from the cache it only loads them).
-    The demo renders from the cache once that process is done, or compiles what it still
-    lacks itself: either way the images are the same."""
+def _start_compiling():
+    """On a cold cache the kernels take minutes to compile; a second process compiles the
+    fits' kernels and then the renderer's on the other core while this one compiles the
+    models' kernels and reads, checks and fits (from the cache it only loads them). A kernel
+    the demo needs before that process has cached it is compiled here as well, and the demo
+    renders once the process is done: either way the results are the same."""
     import multiprocessing
     from .precompile import _run
-    worker = multiprocessing.get_context("spawn").Process(target=_run, args=(["render"],),
+    worker = multiprocessing.get_context("spawn").Process(target=_run,
+                                                          args=(["fitting", "render"],),
                                                           daemon=True)
     worker.start()
     return worker
@@ -129,7 +131,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     log = (lambda s: print(f"brdf-fit demo: {s}", file=sys.stderr)) if progress else (lambda s: None)
     out = _prepare(outdir, force)
     t_start = time.perf_counter()
-    compiling = _start_compiling_renderer()
+    compiling = _start_compiling()
     size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
     with _Stage(log, "read and synthesise") as st:

@@ -35,12 +35,18 @@ def _models():
 
 
 def _fitting():
-    """Losses with and without gradients, and the MCMC likelihood."""
-    import brdf
-    table = brdf.measure("lambert(albedo=0.5) + ggx(alpha=0.3)", "random:300", "relative:0.02")
-    brdf.fit(table, "lambert + ggx(alpha=0.5)")
-    brdf.fit(table, "lambert + ggx(alpha=0.5)", optimizer="LN_BOBYQA")
-    brdf.mcmc(table, "lambert(albedo=0.5)", max_steps=200, progress=False)
+    """The fits' own kernels: the loss with its gradient (gradient-based nlopt), the loss of
+    many parameter rows (derivative-free nlopt, emcee's walkers) and the metrics' scores. The
+    table is made by hand and no fit runs, so the models' kernels (the ``models`` group) are
+    not compiled here a second time."""
+    from .fitting.problem import Problem
+    from .table import Table
+    wi, wo = _pairs()
+    table = Table(wi, wo, np.full((len(wi), 3), 0.2))
+    problem = Problem(table, "lambert + ggx(alpha=0.5)")
+    problem.loss_and_gradient(problem.x0)
+    problem.channel_losses(np.stack([problem.x0, problem.x0]))
+    problem._score(np.zeros_like(table.values), problem.terms)
 
 
 def _tables():
