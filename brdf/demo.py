@@ -153,10 +153,8 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
         entry["best"] = str(best.model)
         if name == "paper-white":
             with _Stage(log, f"{name}: emcee posterior of the best fit"):
-                # the chain runs on a random subset of 2,000 of the table's 7,118 samples (it
-                # starts from the full fit's values): a converged chain, 50 autocorrelation
-                # times, takes some 4,000 steps of 32 walkers, 20 s on two cores at this size
-                post = brdf.mcmc(_subsample(table, 2000, seed),
+                # the chain runs on a random subset (the fit starts from the full fit's values)
+                post = brdf.mcmc(_subsample(table, 2000 if quick else 5000, seed),
                                  str(best.model), seed=seed, max_steps=600 if quick else 6000,
                                  progress=False)
                 post.corner(out / f"{name}-corner.png", force=True)
