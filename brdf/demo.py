@@ -62,10 +62,11 @@ def _start_compiling():
 
 
 class _Stage:
-    """Times a stage and reports it on the progress line."""
+    """Times a stage, reports it on the progress line and records its seconds in ``times``
+    (``summary.json``'s ``stages``: the first run's include numba's compilation)."""
 
-    def __init__(self, log, name):
-        self.log, self.name = log, name
+    def __init__(self, log, name, times):
+        self.log, self.name, self.times = log, name, times
 
     def __enter__(self):
         self.t = time.perf_counter()
@@ -74,6 +75,7 @@ class _Stage:
 
     def __exit__(self, *exc):
         self.seconds = time.perf_counter() - self.t
+        self.times[self.name] = self.seconds
         if exc[0] is None:
             self.log(f"{self.name}: {self.seconds:.1f} s")
         return False
@@ -134,15 +136,16 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     compiling = _start_compiling()
     size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
-    with _Stage(log, "read and synthesise") as st:
+    times = summary["stages"]
+    with _Stage(log, "read and synthesise", times):
         data = _datasets(seed, log)
-    summary["stages"]["data"] = st.seconds
     for name, table in data.items():
         entry = summary["datasets"][name] = {"images": {}}
-        with _Stage(log, f"{name}: info and checks") as st:
+        with _Stage(log, f"{name}: info and checks", times):
             entry["info"] = table.summary()
             entry["check"] = brdf.check(table).to_dict()
-        with _Stage(log, f"{name}: fit {len(CANDIDATES)} models (energy constraint), compare"):
+        with _Stage(log, f"{name}: fit {len(CANDIDATES)} models (energy constraint), compare",
+                    times):
             comparison = brdf.compare(table, list(CANDIDATES), by="bic", energy_constraint=True,
                                       shared=["ks"] if name == "synthetic-merl" else [],
                                       seed=seed)
@@ -152,7 +155,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
         _write_json(out / f"{name}-fit.json", best.to_dict())
         entry["best"] = str(best.model)
         if name == "paper-white":
-            with _Stage(log, f"{name}: emcee posterior of the best fit"):
+            with _Stage(log, f"{name}: emcee posterior of the best fit", times):
                 # the chain runs on a random subset (the fit starts from the full fit's values)
                 post = brdf.mcmc(_subsample(table, 2000 if quick else 5000, seed),
                                  str(best.model), seed=seed, max_steps=600 if quick else 6000,
@@ -160,7 +163,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 post.corner(out / f"{name}-corner.png", force=True)
                 entry["posterior"] = post.to_dict()
                 entry["images"]["posterior (corner)"] = f"{name}-corner.png"
-        with _Stage(log, f"{name}: validation renders"):
+        with _Stage(log, f"{name}: validation renders", times):
             compiling.join()
             images = {}
             for label, material in (("measured", table), ("fitted", best.model)):
@@ -176,7 +179,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
             entry["images"]["difference (red: fit brighter)"] = f"{name}-difference.png"
             entry["images"]["FLIP error"] = f"{name}-flip.png"
             entry["image_metrics"] = m
-        with _Stage(log, f"{name}: lobes and plots"):
+        with _Stage(log, f"{name}: lobes and plots", times):
             plot_lobes(best.model, (30.0, 60.0), data=table, path=out / f"{name}-lobes.png",
                        force=True)
             entry["images"]["3-D lobes of the fit (measured samples as points)"] = \

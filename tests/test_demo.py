@@ -41,6 +41,11 @@ def test_demo_writes_every_stage(results):
     # the real paper is nearly diffuse and keeps its energy
     assert "posterior" in summary["datasets"]["paper-white"]
     assert json.loads((out / "summary.json").read_text())["seed"] == 0
+    # every stage is timed, and the stages account for the run
+    stages = summary["stages"]
+    assert len(stages) == 1 + 5 * 2 - 1  # data, then 5 per data set, the posterior once
+    assert all(s > 0.0 for s in stages.values())
+    assert sum(stages.values()) <= summary["seconds"] <= sum(stages.values()) + 30.0
 
 
 @pytest.mark.slow
