@@ -49,9 +49,10 @@ DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
 def _start_compiling():
     """On a cold cache the kernels take minutes to compile; a second process compiles the
     fits' kernels and then the renderer's on the other core while this one compiles the
-    models' kernels and reads, checks and fits (from the cache it only loads them). A kernel
-    the demo needs before that process has cached it is compiled here as well, and the demo
-    renders once the process is done: either way the results are the same."""
+    models' (evaluation, albedo: :func:`_compile_albedo`) and then reads, checks and fits
+    (from the cache it only loads them). A kernel the demo needs before that process has
+    cached it is compiled here as well, and the demo renders once the process is done: either
+    way the results are the same."""
     import multiprocessing
     from .precompile import _run
     worker = multiprocessing.get_context("spawn").Process(target=_run,
@@ -59,6 +60,15 @@ def _start_compiling():
                                                           daemon=True)
     worker.start()
     return worker
+
+
+def _compile_albedo():
+    """Compile (or load) the albedo kernel, with its gradient, here and now: every fit needs
+    it and the loss kernels at once, and the second process is compiling those meanwhile
+    (each takes about a minute on a cold cache)."""
+    from .geometry import directions_from_degrees
+    from .spec import parse
+    parse("lambert + ggx").albedo_gradient(directions_from_degrees([30.0], [0.0]))
 
 
 class _Stage:
@@ -139,6 +149,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     times = summary["stages"]
     with _Stage(log, "read and synthesise", times):
         data = _datasets(seed, log)
+        _compile_albedo()
     for name, table in data.items():
         entry = summary["datasets"][name] = {"images": {}}
         with _Stage(log, f"{name}: info and checks", times):
