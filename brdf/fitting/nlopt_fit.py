@@ -453,7 +453,9 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         energy check of the result still fail between them, its worst angle joins the
         constraint and the fit resumes (:data:`ENERGY_ROUNDS`). LD_SLSQP takes the constraint
         natively and is the cheapest choice; AUGLAG around LD_LBFGS needs several times more
-        evaluations (each with the constraint's difference Jacobian of albedo integrals).
+        evaluations (each with the constraint's Jacobian: one albedo cubature with analytic
+        derivatives, or 2G + 1 for central differences where a lobe has none, see
+        :meth:`Problem.albedo_jacobian`).
     cutoff : float
         Grazing cutoff in degrees on theta_i and theta_o (see
         :data:`brdf.fitting.losses.DEFAULT_CUTOFF`).
