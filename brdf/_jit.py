@@ -90,8 +90,8 @@ def _inputs_as_writable(dispatcher):
     """``dispatcher``, typing a read-only array argument from Python as a writable one.
 
     numba compiles a kernel again for each array flagged read-only (a broadcast view, a table
-    read with ``np.frombuffer``, samples a fit protects), and callers mixed both, so kernels
-    were compiled two to four times. Kernels write only the output arrays their drivers
+    read with ``np.frombuffer``), and callers mixed both, so kernels were compiled two to four
+    times. Kernels write only the output arrays their drivers
     allocate, never an input, so the flag changes nothing in the machine code."""
     typeof = dispatcher.typeof_pyval
 
