@@ -523,17 +523,15 @@ def _loss_sums(kinds, offs, params, lobes, nch, wi, wo, scale, target, weight, o
         for j in range(params.shape[0]):
             f[:, :] = 0.0
             for l in range(nl):
-                q = params[j, offs[l]:offs[l + 1]]
-                kind = kinds[l]
-                if j == 0:
+                own = j > 0 and lobes[j, l]
+                if j == 0 or own:
+                    # one call site: the inlined eval of every family is compiled once
+                    dst = f if own else base[l]
+                    q = params[j, offs[l]:offs[l + 1]]
                     for k in range(lo, hi):
-                        lobe_eval(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
-                                  wo[k, 2], base[l], k - lo)
-                if j > 0 and lobes[j, l]:
-                    for k in range(lo, hi):
-                        lobe_eval(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
-                                  wo[k, 2], f, k - lo)
-                else:
+                        lobe_eval(kinds[l], q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0],
+                                  wo[k, 1], wo[k, 2], dst, k - lo)
+                if not own:
                     f += base[l]
             for c in range(nch):
                 out[b, j, c] = _block_score(f, lo, hi, c, scale, target, weight, offset)
