@@ -91,8 +91,7 @@ def precompile(groups=tuple(GROUPS), processes=2):
     groups : sequence of str
         Keys of :data:`GROUPS`.
     processes : int
-        Worker processes; the groups are dealt out to them in order (models and fitting
-        together share most of their kernels, as do tables and the renderer).
+        Worker processes; the groups are dealt out to them in order, in equal shares.
 
     Returns
     -------
