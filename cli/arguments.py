@@ -1,6 +1,7 @@
-"""Argument types for angles given in degrees on the command line.
+"""Argument types for angles given in degrees on the command line, and the option group of the
+commands that run a chain.
 
-Each raises :class:`argparse.ArgumentTypeError` with a message that says what was wrong and what
+Each type raises :class:`argparse.ArgumentTypeError` with a message that says what was wrong and what
 was expected; argparse prefixes it with the option's name (``argument --wi: ...``).
 """
 
@@ -63,3 +64,27 @@ def seed(text):
     if value < 0:
         raise argparse.ArgumentTypeError(f"seed {text!r} is not a non-negative integer")
     return value
+
+
+#: brdf.fitting.mcmc.MOVES, named here so that building the parser imports no numpy
+MOVES = ("de", "stretch")
+
+
+def add_chain_options(group):
+    """emcee's options, shared by ``fit --mcmc`` and the posterior plots."""
+    group.add_argument("--walkers", type=int, metavar="N",
+                       help="emcee walkers, even, >= 2 x parameters (default: max(32, 4 x them))")
+    group.add_argument("--max-steps", type=int, default=20000, metavar="N",
+                       help="cap on the chain length (default: 20000)")
+    group.add_argument("--moves", choices=MOVES,
+                       help="walker proposals: differential evolution with snooker updates "
+                            "(de, default) or emcee's stretch move")
+
+
+def chain_options(args):
+    """brdf.mcmc's keywords from the options of :func:`add_chain_options` (unset ones left to
+    its defaults)."""
+    options = {"walkers": args.walkers, "max_steps": args.max_steps}
+    if args.moves is not None:
+        options["moves"] = args.moves
+    return options

@@ -266,14 +266,15 @@ def fit(args, out):
     atomically; exit 1 unless converged."""
     import brdf
     from brdf.errors import InputError
+    from .arguments import chain_options
     from .export import export_path, report as export_report
     target = export_path(args)
     _refuse_existing(args, args.output, args.chain, args.corner, target)
     if target:  # a model without an equivalent is refused before the fit, not after
         from brdf.fitting.export import check_families
         check_families(args.spec, args.export)
-    if not args.mcmc and (args.walkers or args.chain or args.corner):
-        raise InputError("--walkers, --chain and --corner need --mcmc")
+    if not args.mcmc and (args.walkers or args.chain or args.corner or args.moves):
+        raise InputError("--walkers, --moves, --chain and --corner need --mcmc")
     table = read_table(args.data)
     result = brdf.fit(table, args.spec, loss=args.loss, optimizer=args.optimizer,
                       starts=args.starts, energy_constraint=args.energy_constraint,
@@ -282,8 +283,8 @@ def fit(args, out):
     report = result.to_dict()
     post = None
     if args.mcmc:
-        post = brdf.mcmc(table, result, walkers=args.walkers, max_steps=args.max_steps,
-                         seed=args.seed, chain=args.chain, force=args.force)
+        post = brdf.mcmc(table, result, seed=args.seed, chain=args.chain, force=args.force,
+                         **chain_options(args))
         timing = report.pop("timing")
         report["posterior"] = post.to_dict()
         report["timing"] = {**timing, "mcmc_s": post.seconds}

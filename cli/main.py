@@ -220,10 +220,7 @@ def _fit_parser(sub):
     m.add_argument("--mcmc", action="store_true",
                    help="after the fit, sample the posterior: medians, 68%% and 95%% intervals, "
                         "correlations; exit 1 if the chain did not converge")
-    m.add_argument("--walkers", type=int, metavar="N",
-                   help="emcee walkers, even, >= 2 x parameters (default: max(32, 4 x them))")
-    m.add_argument("--max-steps", type=int, default=20000, metavar="N",
-                   help="cap on the chain length (default: 20000)")
+    arguments.add_chain_options(m)
     m.add_argument("--chain", metavar="PATH", help="save the chain (.npz, or .h5 with h5py)")
     m.add_argument("--corner", metavar="PNG", help="write a corner plot of the posterior")
     export.add_fit_options(p.add_argument_group("export"))

@@ -39,10 +39,7 @@ def _posterior(p):
     p.add_argument("data", metavar="DATA", help="the measured table")
     p.add_argument("model", metavar="MODEL", help="a spec or a JSON fit report to start from "
                    "(a report's loss, cutoff, shared and fixed parameters are reused)")
-    p.add_argument("--walkers", type=int, metavar="N", help="emcee walkers (default: "
-                   "max(32, 4 x parameters))")
-    p.add_argument("--max-steps", type=int, default=20000, metavar="N",
-                   help="cap on the chain length (default: 20000)")
+    arguments.add_chain_options(p)
     p.add_argument("--seed", type=arguments.seed, default=0, help="seed (default: 0)")
 
 
@@ -258,8 +255,8 @@ def _posterior_of(args):
         options = {"loss": saved.get("loss", "cosine-l2"),
                    "cutoff": saved.get("cutoff_deg", 80.0),
                    "shared": saved.get("shared", []), "fix": saved.get("fix", {})}
-    return table, brdf.mcmc(table, start, walkers=args.walkers, max_steps=args.max_steps,
-                            seed=args.seed, **options)
+    return table, brdf.mcmc(table, start, seed=args.seed, **arguments.chain_options(args),
+                            **options)
 
 
 def _posterior_facts(post):
