@@ -15,7 +15,8 @@ Geometry arrays (see :class:`brdf.render.scene.Compiled`):
 - ``tri (nt, 3, 3)`` vertices, ``tri_n (nt, 3, 3)`` vertex normals (zero rows: flat shading),
   ``tri_uv (nt, 3, 2)``;
 - BVH nodes ``box (nn, 2, 3)`` (lower and upper corners) and ``child (nn, 2)``: an inner node
-  holds its two children, a leaf ``(-start - 1, count)`` into ``order``, the primitive order.
+  holds its two children, a leaf ``(-start - 1, count)`` into ``order``, the primitive order
+  (built by :mod:`.bvh`).
 """
 
 import math
@@ -25,8 +26,6 @@ import numpy as np
 from .._jit import inline_kernel
 
 SPHERE, QUAD, TRIANGLE = 0, 1, 2
-#: Primitives per BVH leaf at most.
-LEAF_SIZE = 4
 #: Depth of the traversal stack (a median-split tree over 2^60 primitives fits).
 STACK = 64
 
@@ -195,60 +194,3 @@ def occluded(prim, sph, quad, tri, box, child, order, stack, ox, oy, oz, dx, dy,
             stack[top + 1] = c1
             top += 2
     return False
-
-
-@inline_kernel
-def build_bvh(lo, hi):
-    """Median-split BVH over primitive boxes ``lo, hi (n, 3)``: returns node boxes ``(nn, 2,
-    3)``, children and the primitive order (see the module docstring). Each node splits its primitives at the
-    median centroid along the axis of largest centroid extent (PBR 4th ed. 7.3.1, the
-    "equal counts" split), until at most LEAF_SIZE remain."""
-    n = lo.shape[0]
-    cap = 2 * n + 1
-    nlo = np.empty((cap, 3))
-    nhi = np.empty((cap, 3))
-    child = np.zeros((cap, 2), dtype=np.int64)
-    order = np.arange(n)
-    cen = 0.5 * (lo + hi)
-    # work list of (node, start, count)
-    work = np.empty((cap, 3), dtype=np.int64)
-    work[0, 0], work[0, 1], work[0, 2] = 0, 0, n
-    nwork = 1
-    nodes = 1
-    while nwork > 0:
-        nwork -= 1
-        node, start, count = work[nwork, 0], work[nwork, 1], work[nwork, 2]
-        for a in range(3):
-            nlo[node, a] = math.inf
-            nhi[node, a] = -math.inf
-        clo = np.full(3, math.inf)
-        chi = np.full(3, -math.inf)
-        for s in range(start, start + count):
-            i = order[s]
-            for a in range(3):
-                nlo[node, a] = min(nlo[node, a], lo[i, a])
-                nhi[node, a] = max(nhi[node, a], hi[i, a])
-                clo[a] = min(clo[a], cen[i, a])
-                chi[a] = max(chi[a], cen[i, a])
-        axis = 0
-        for a in range(1, 3):
-            if chi[a] - clo[a] > chi[axis] - clo[axis]:
-                axis = a
-        if count <= LEAF_SIZE or chi[axis] - clo[axis] <= 0.0:
-            child[node, 0] = -start - 1
-            child[node, 1] = count
-            continue
-        seg = order[start:start + count]
-        keys = cen[seg, axis]
-        order[start:start + count] = seg[np.argsort(keys, kind="mergesort")]
-        half = count // 2
-        left, right = nodes, nodes + 1
-        nodes += 2
-        child[node, 0], child[node, 1] = left, right
-        work[nwork, 0], work[nwork, 1], work[nwork, 2] = right, start + half, count - half
-        work[nwork + 1, 0], work[nwork + 1, 1], work[nwork + 1, 2] = left, start, half
-        nwork += 2
-    box = np.empty((nodes, 2, 3))
-    box[:, 0] = nlo[:nodes]
-    box[:, 1] = nhi[:nodes]
-    return box, child[:nodes].copy(), order

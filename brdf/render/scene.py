@@ -15,6 +15,7 @@ from ..errors import InputError
 from . import _intersect as X
 from . import _lights as L
 from . import _materials as M
+from .bvh import build_bvh
 
 __all__ = ["Camera", "Sphere", "Quad", "Mesh", "box", "rectangle", "Material", "PointLight",
            "SpotLight", "DirectionalLight", "GoniometricLight", "Environment", "Scene"]
@@ -365,7 +366,7 @@ class Scene:
         lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
-        nodes, child, order = X.build_bvh(lo - pad, hi + pad)
+        nodes, child, order = build_bvh(lo - pad, hi + pad)
         geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, order)
         # area lights from emissive shapes
         for i, (kind, j, _, k) in enumerate(prims):
