@@ -438,24 +438,24 @@ def _estimate(kind, q, nch, term, ix, iy, iz, x0, y0, h, rules, f, val, lo, e, z
     kink joins two pieces) neighbours across it differ little, and less as panels shrink, so
     refinement follows the cut only until its panels are small enough.
     """
-    xs_hi, ws_hi, xs_lo, ws_lo = rules
+    xs_hi, ws_hi, xs_lo, ws_lo, corners = rules
     seen, step, peak = _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs_hi, ws_hi, f, val,
                               zone, node)
-    # corners, against the 6 x 6 grid still in zone and node
+    # the corners as a 2 x 2 "rule" of _panel (one copy of the inlined integrand per kernel,
+    # not two), into rows 1 and 2 of zone and node (C-contiguous views, so _panel compiles
+    # once), which hold none of the high rule's corners
     m = xs_hi.shape[0] - 1
-    eps = 1e-9 * h
-    for corner in range(4):
-        u1, j1 = _edge_warp(x0 + eps + (h - 2.0 * eps) * (corner % 2))
-        u2, j2 = _edge_warp(y0 + eps + (h - 2.0 * eps) * (corner // 2))
-        z = lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, f)
-        seen |= 1 << (z + 1)
-        a, b = m * (corner % 2), m * (corner // 2)
-        across = z != 0 and zone[a, b] != 0 and z != zone[a, b]
-        for c in range(nch):
-            g = f[0, c] * j1 * j2 if z > 0 else 0.0
-            peak = max(peak, abs(g))
-            if across:
-                step = max(step, abs(g - node[a, b, c]))
+    zc, nc = zone[1:3], node[1:3]
+    seen_c, _, peak_c = _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, corners, corners,
+                               f, lo, zc, nc)
+    seen |= seen_c
+    peak = max(peak, peak_c)
+    for ca in range(2):
+        for cb in range(2):
+            z, a, b = zc[ca, cb], m * ca, m * cb
+            if z != 0 and zone[a, b] != 0 and z != zone[a, b]:
+                for c in range(nch):
+                    step = max(step, abs(nc[ca, cb, c] - node[a, b, c]))
     seen_lo, step_lo, peak_lo = _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs_lo, ws_lo,
                                        f, lo, zone, node)
     jump = 0.0

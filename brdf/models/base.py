@@ -321,6 +321,10 @@ def _gauss_legendre_unit(n):
 
 #: Panel rules of the albedo cubature: 6-point Gauss-Legendre and the embedded 3-point estimate.
 _GAUSS_RULES = (*_gauss_legendre_unit(6), *_gauss_legendre_unit(3))
+#: What the albedo kernel takes: those rules, then a panel's corners as the nodes of a 2 x 2
+#: "rule" (just inside it, as samplers map the square's edges onto the horizon; an argument,
+#: not a global constant, whose read-only type would compile the panel kernel twice)
+_KERNEL_RULES = (*_GAUSS_RULES, np.array([1e-9, 1.0 - 1e-9]))
 
 
 class Model(Component):
@@ -517,7 +521,7 @@ class Model(Component):
         n = len(first)
         dealt = (np.zeros((n, c.nch)), np.zeros((n, c.nch)), np.zeros(n, dtype=np.int64))
         grad = np.zeros((n, len(c.params), c.nch) if gradient else (1, 0, c.nch))
-        _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _GAUSS_RULES,
+        _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _KERNEL_RULES,
                               float(tol), int(max_panels), *dealt, grad)
         out, err, panels = (np.empty_like(a) for a in dealt)
         for mine, theirs in zip((out, err, panels), dealt):
