@@ -161,9 +161,10 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order,
                 if not specular and strategy == MIS:
                     w = _power(prev_pdf, pmf[env_light] * env_pdf(lf, env, rows, cols, env_light,
                                                                   dx, dy, dz))
-                radiance[0] += thr0 * w * env_radiance(lf, env, env_light, dx, dy, dz, 0)
-                radiance[1] += thr1 * w * env_radiance(lf, env, env_light, dx, dy, dz, 1)
-                radiance[2] += thr2 * w * env_radiance(lf, env, env_light, dx, dy, dz, 2)
+                r, g, b = env_radiance(lf, env, env_light, dx, dy, dz)
+                radiance[0] += thr0 * w * r
+                radiance[1] += thr1 * w * g
+                radiance[2] += thr2 * w * b
             break
         px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
         nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,

@@ -77,16 +77,17 @@ def _env_pixel(env, x, y, z):
 
 
 @inline_kernel
-def env_radiance(lf, env, e, dx, dy, dz, c):
-    """Radiance in channel c of environment light e along world direction d (0 if e < 0)."""
+def env_radiance(lf, env, e, dx, dy, dz):
+    """RGB radiance of environment light e along world direction d (0 if e < 0); one map
+    lookup for the three channels."""
     if e < 0:
-        return 0.0
+        return 0.0, 0.0, 0.0
     f = lf[e]
     if f[0] == 0.0:
-        return f[3 + c]
+        return f[3], f[4], f[5]
     x, y, z = _env_local(f, dx, dy, dz)
     i, j, _ = _env_pixel(env, x, y, z)
-    return f[3 + c] * env[i, j, c]
+    return f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2]
 
 
 @inline_kernel
@@ -260,6 +261,5 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
             li[c] = f[3 + c]
         return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz)
     dx, dy, dz, pdf = _sample_env(lf, env, rows, cols, l, u1, u2)
-    for c in range(3):
-        li[c] = env_radiance(lf, env, l, dx, dy, dz, c)
+    li[0], li[1], li[2] = env_radiance(lf, env, l, dx, dy, dz)
     return dx, dy, dz, math.inf, pdf
