@@ -1,8 +1,8 @@
 """Argument types for angles given in degrees on the command line, and the option group of the
 commands that run a chain.
 
-Each type raises :class:`argparse.ArgumentTypeError` with a message that says what was wrong and what
-was expected; argparse prefixes it with the option's name (``argument --wi: ...``).
+Each type raises :class:`argparse.ArgumentTypeError` with a message that says what was wrong and
+what was expected; argparse prefixes it with the option's name (``argument --wi: ...``).
 """
 
 import argparse
@@ -73,7 +73,8 @@ MOVES = ("de", "stretch")
 def add_chain_options(group):
     """emcee's options, shared by ``fit --mcmc`` and the posterior plots."""
     group.add_argument("--walkers", type=int, metavar="N",
-                       help="emcee walkers, even, >= 2 x parameters (default: max(32, 4 x them))")
+                       help="emcee walkers, even, >= 2 x parameters and >= 4 for de (default: "
+                            "max(32, 4 x parameters))")
     group.add_argument("--max-steps", type=int, default=20000, metavar="N",
                        help="cap on the chain length (default: 20000)")
     group.add_argument("--moves", choices=MOVES,

@@ -50,6 +50,8 @@ PERCENTILES = (2.5, 16.0, 50.0, 84.0, 97.5)
 DEFAULT_MAX_STEPS = 20000
 #: Steps before the first convergence check; later checks come every tenth of the chain so far.
 FIRST_CHECK = 200
+#: Fewest walkers that differential-evolution moves can work with.
+DE_WALKERS = 4
 #: Width of the starting ball, as a fraction of each coordinate's box.
 BALL = 1e-3
 #: The noise scale's prior box: this factor either side of its maximum-likelihood value at the
@@ -453,6 +455,12 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     result, problem, x_opt = _start_fit(table, start, seed, fit_options)
     logpost = LogPosterior(problem, x_opt)
     nwalkers = _walkers(walkers, logpost.dim)
+    if nwalkers < DE_WALKERS and any(isinstance(m, (emcee.moves.DEMove,
+                                                    emcee.moves.DESnookerMove))
+                                     for m, _ in proposals):
+        raise InputError(f"walkers must be >= {DE_WALKERS} with differential-evolution moves "
+                         f"(a walker moves along the difference of two others of the other "
+                         f"half), got {nwalkers}; or moves='stretch'")
     sampler = emcee.EnsembleSampler(nwalkers, logpost.dim, logpost, vectorize=True,
                                     backend=backend, moves=proposals)
     sampler.random_state = state.get_state()

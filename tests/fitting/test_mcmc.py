@@ -136,6 +136,7 @@ def test_predictive_bands_bracket_the_fit(lambert_posterior):
     ({"moves": "gibbs"}, "moves must be one of de, stretch or emcee moves"),
     ({"moves": [("de", 1.0)]}, "moves must be one of de, stretch, an emcee Move or a list"),
     ({"moves": []}, "moves must be one of de, stretch, an emcee Move or a list"),
+    ({"walkers": 2}, "walkers must be >= 4 with differential-evolution moves"),
 ])
 def test_bad_options_are_one_line_errors(lambert_table, options, fragment):
     with pytest.raises(InputError, match=fragment):
