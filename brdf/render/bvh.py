@@ -3,9 +3,10 @@
 
 The tree is the median split of PBR (4th ed., 7.3.1, the "equal counts" split): a node's
 primitives are split at the median centroid along the axis of largest centroid extent, until
-at most :data:`LEAF_SIZE` remain or their centroids coincide. Every node of a level is split at
-once, by one stable sort on (node, centroid) per level: nothing to compile (a numba builder
-took 8 s to compile on a cold cache, far longer than building any scene we ship).
+at most :data:`LEAF_SIZE` remain or their centroids coincide. The primitives are sorted by
+centroid along each axis once; every node of a level is then split at once, each axis's order
+partitioned stably, and the boxes are made bottom-up. Nothing to compile (a numba builder took
+8 s to compile on a cold cache), and a million boxes take about 2 s, as that builder did.
 """
 
 import numpy as np
