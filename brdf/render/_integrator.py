@@ -147,8 +147,8 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order,
     ``radiance``, ``aov``, ``f``, ``li``, ``stack`` and ``scratch`` are work space."""
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
-    for s in range(s0, s1):
-        state[0] = _stream(seed, y * opts[W] + x, s)
+    for sample in range(s0, s1):
+        state[0] = _stream(seed, y * opts[W] + x, sample)
         for c in range(6):
             aov[c] = 0.0
         for c in range(3):
@@ -166,10 +166,10 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order,
                     if not specular and strategy == MIS:
                         w = _power(prev_pdf, pmf[env_light] * env_pdf(lf, env, rows, cols,
                                                                       env_light, dx, dy, dz))
-                    r, g, b = env_radiance(lf, env, env_light, dx, dy, dz)
-                    radiance[0] += thr0 * w * r
-                    radiance[1] += thr1 * w * g
-                    radiance[2] += thr2 * w * b
+                    le0, le1, le2 = env_radiance(lf, env, env_light, dx, dy, dz)
+                    radiance[0] += thr0 * w * le0
+                    radiance[1] += thr1 * w * le1
+                    radiance[2] += thr2 * w * le2
                 break
             px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
             nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,
@@ -219,16 +219,16 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order,
                                       lz, f)
                             cos_l = max(lz, 0.0)
                             if lpdf == math.inf:
-                                s = cos_l / pmf[l]
+                                scale = cos_l / pmf[l]
                             else:
                                 w = 1.0
                                 if strategy == MIS:
                                     w = _power(pmf[l] * lpdf, bsdf_pdf(mint, kinds, offs, tables, m,
                                                                        p, vx, vy, vz, lx, ly, lz))
-                                s = w * cos_l / (pmf[l] * lpdf)
-                            radiance[0] += thr0 * f[0, 0] * li[0] * s
-                            radiance[1] += thr1 * f[0, 1] * li[1] * s
-                            radiance[2] += thr2 * f[0, 2] * li[2] * s
+                                scale = w * cos_l / (pmf[l] * lpdf)
+                            radiance[0] += thr0 * f[0, 0] * li[0] * scale
+                            radiance[1] += thr1 * f[0, 1] * li[1] * scale
+                            radiance[2] += thr2 * f[0, 2] * li[2] * scale
             # continue the path by sampling the BSDF
             lx, ly, lz, pdf = bsdf_sample(mint, kinds, offs, grids, filled, tables, m, p, vx, vy,
                                           vz, _uniform(state), _uniform(state), f)
