@@ -28,16 +28,15 @@ def main():
     fitted = time.perf_counter()
     print(f"lambert + ggx, {args.samples:,} samples (2% relative noise, stated sigma); "
           f"nlopt fit {fitted - began:.2f} s")
-    seconds = {}
+    seconds, posts = {}, {}
     for moves in ("de", "stretch"):
         t = time.perf_counter()
-        post = brdf.mcmc(table, fit, seed=args.seed, moves=moves, progress=False)
+        post = posts[moves] = brdf.mcmc(table, fit, seed=args.seed, moves=moves, progress=False)
         seconds[moves] = time.perf_counter() - t
         print(f"\n--- moves={moves}\n{post}")
         print(f"emcee {seconds[moves]:.1f} s ({post.walkers} walkers x {post.steps} steps = "
               f"{post.walkers * post.steps / seconds[moves]:,.0f} log-posteriors/s)")
-        if moves == "de":
-            met = post.converged and seconds[moves] < 90
+    met = posts["de"].converged and seconds["de"] < 90
     print(f"\ndefault (de) {seconds['de']:.1f} s against emcee's stretch move "
           f"{seconds['stretch']:.1f} s: {seconds['stretch'] / seconds['de']:.1f}x faster")
     print(f"target < 90 s to a converged chain: {'met' if met else 'NOT met'}")
