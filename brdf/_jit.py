@@ -17,7 +17,7 @@ import os
 import re
 
 import numba
-from numba.core import caching, types
+from numba.core import caching, datamodel, types
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
@@ -103,12 +103,45 @@ def _inputs_as_writable(dispatcher):
     return dispatcher
 
 
+def _borrowing(dispatcher):
+    """``dispatcher``, refusing any signature that returns a reference-counted value.
+
+    A kernel compiled without reference counting (see :func:`kernel`) borrows its arrays
+    from the caller. Returning one would hand the caller a reference it never got, and the
+    caller's release of it would free the array under its owner; numba itself refuses only
+    arrays the kernel did not receive."""
+    add = dispatcher.add_overload
+
+    def add_overload(cres):
+        ret = cres.signature.return_type
+        if datamodel.default_manager[ret].contains_nrt_meminfo():
+            raise TypeError(f"kernel {dispatcher.py_func.__qualname__} returns {ret}: "
+                            "a kernel compiled by brdf._jit.kernel may return only scalars")
+        add(cres)
+
+    dispatcher.add_overload = add_overload
+    return dispatcher
+
+
 def kernel(fn):
-    """Compile a scalar or serial kernel (cached, fast-math without nnan/ninf).
+    """Compile a scalar or serial kernel (cached, fast-math without nnan/ninf), without
+    reference counting.
 
     A kernel whose arguments are all scalars needs nothing more to be fast where it is called:
     LLVM inlines it into its callers once their code is linked, and their loops still
-    vectorise across it."""
+    vectorise across it. A kernel that takes arrays only borrows them from its caller, which
+    holds them for the whole call, so counting references to them is pure cost: with it, every
+    array argument cost two atomic operations per call (a Cornell-box path at depth 8, one
+    thread: 2.23 us with them, 1.30 us without). Such a kernel may slice and write its
+    arrays but not allocate one (numba refuses to compile it) nor return one
+    (:func:`_borrowing` refuses); kernels that allocate use :func:`allocating_kernel`."""
+    return _borrowing(_without_literals(numba.njit(fn, cache=True, fastmath=FASTMATH,
+                                                   error_model="numpy", _nrt=False)))
+
+
+def allocating_kernel(fn):
+    """Compile a serial kernel that allocates work arrays (reference counted, as numba's
+    default; otherwise as :func:`kernel`)."""
     return _without_literals(numba.njit(fn, cache=True, fastmath=FASTMATH,
                                         error_model="numpy"))
 
@@ -117,9 +150,9 @@ def inline_kernel(fn):
     """Compile a kernel that numba inlines into its callers before LLVM sees them.
 
     Only for functions that take arrays (a lobe's packed parameters, the output row) on hot
-    paths: passed to a called function, an array costs a reference-count increment and
-    decrement per call, which also stops the caller's loop from vectorising (``lambert + ggx``
-    eval: four times slower); inlined, numba drops them. Each inlined copy is typed and
+    paths. They were inlined when a called kernel counted a reference to each array it took,
+    which also stopped the caller's loop from vectorising (``lambert + ggx`` eval: four times
+    slower); :func:`kernel` no longer counts them. Each inlined copy is typed and
     lowered again, so inlining functions of scalars as well made a cold cache compile three
     to four times longer (15 minutes on two cores) at no gain in speed."""
     return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy",

@@ -1,4 +1,5 @@
-"""How brdf._jit compiles: one machine-code specialisation per kernel, whatever callers pass.
+"""How brdf._jit compiles: one machine-code specialisation per kernel, whatever callers pass,
+and kernels that borrow their arrays without counting references to them.
 
 Each duplicate specialisation of a library kernel cost tens of seconds on a cold cache; these
 toy kernels hold the three ways they arose (literal constants, read-only arrays, prange's
@@ -6,10 +7,11 @@ unsigned counter) to one specialisation each.
 """
 
 import numpy as np
+import pytest
 from numba import prange, typeof
 from numba.core import types
 
-from brdf._jit import kernel, parallel_kernel
+from brdf._jit import allocating_kernel, kernel, parallel_kernel
 
 
 @kernel
@@ -59,3 +61,52 @@ def test_read_only_inputs_share_the_writable_specialisation():
     assert len(_doubled.overloads) == 1
     # the arrays themselves keep their flag
     assert not view.flags.writeable and a.flags.writeable
+
+
+@kernel
+def _add_one(a):
+    a[0] += 1.0
+    return a[0] + a[-1]
+
+
+@kernel
+def _hand_back(a):
+    return a
+
+
+@kernel
+def _hand_back_in_tuple(a):
+    return a, 1.0
+
+
+@kernel
+def _summed_copy(a):
+    return np.copy(a).sum()
+
+
+@allocating_kernel
+def _copied(a):
+    return np.copy(a)
+
+
+def test_kernels_borrow_arrays_and_may_write_them():
+    a = np.ones(3)
+    for _ in range(1000):
+        _add_one(a)
+    assert a[0] == 1001.0 and _add_one(a) == 1003.0
+
+
+@pytest.mark.parametrize("fn", [_hand_back, _hand_back_in_tuple])
+def test_a_kernel_returning_an_array_is_refused(fn):
+    # without reference counts, the caller would release a reference it never got
+    with pytest.raises(TypeError, match="may return only scalars"):
+        fn(np.zeros(3))
+
+
+def test_a_kernel_cannot_allocate_but_an_allocating_kernel_can():
+    with pytest.raises(Exception, match="returning of array passed into the function"):
+        _summed_copy(np.ones(3))
+    a = np.arange(3.0)
+    b = _copied(a)
+    b[0] = 7.0
+    assert a[0] == 0.0 and b.sum() == 10.0

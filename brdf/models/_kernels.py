@@ -25,7 +25,7 @@ tests hold them to ``eval`` cos / ``pdf``.)
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from . import _kinds as K
 from . import lambert, microfacet, mirror
 from . import blinn_phong, phong
@@ -516,7 +516,7 @@ def _refine(kind, q, nch, term, ix, iy, iz, rules, tol, geo, val, perr, pe, f, l
     return n
 
 
-@kernel
+@allocating_kernel
 def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
     """Add the integral of df/dq_j cos(theta_o) over the outgoing hemisphere to ``dout[j, c]``
     for the lobe's packed parameters q_j, by the high-order rule on panels ``geo[:n]`` of its
@@ -545,7 +545,7 @@ def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
                         dout[i, c] += d[i, 0, c] * s
 
 
-@kernel
+@allocating_kernel
 def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err, dout):
     """One term of a lobe's albedo into ``out`` and ``err`` (see ``_refine``), and with a
     non-empty ``dout`` (P, C) its derivatives in the lobe's packed parameters (single-term,

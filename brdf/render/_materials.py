@@ -74,7 +74,8 @@ def material_params(mint, params, bind, tex, texmeta, m, u, v, scratch):
     if mint[m, B0] == mint[m, B1]:
         return p
     q = scratch[:p.shape[0]]
-    q[:] = p
+    for j in range(p.shape[0]):  # a slice assignment may allocate, which kernels cannot
+        q[j] = p[j]
     for j in range(mint[m, B0], mint[m, B1]):
         q[bind[j, 1]] = texture_lookup(tex, texmeta, bind[j, 2], bind[j, 3], u, v)
     return q
