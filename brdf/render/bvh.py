@@ -11,10 +11,9 @@ partitioned stably, and the boxes are made bottom-up. Nothing to compile (a numb
 
 import numpy as np
 
-__all__ = ["build_bvh", "LEAF_SIZE"]
+from ._intersect import LEAF_SIZE
 
-#: Primitives per BVH leaf at most.
-LEAF_SIZE = 4
+__all__ = ["build_bvh", "LEAF_SIZE"]
 
 
 def _ranges(start, count):

@@ -312,7 +312,7 @@ _SIDES = {"front": L.FRONT, "back": L.BACK, "both": L.FRONT | L.BACK}
 
 class Compiled:
     """The kernels' view of a scene: the ``geo`` arrays (prim, sph, quad, tri, tri_n, tri_uv,
-    BVH boxes, children, order), ``mats`` (see ``_materials``) and ``lights`` (see
+    BVH boxes, children, order, planes), ``mats`` (see ``_materials``) and ``lights`` (see
     ``_lights``)."""
 
     def __init__(self, geo, mats, lights, bounds):
@@ -367,7 +367,8 @@ class Scene:
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
         nodes, child, order = build_bvh(lo - pad, hi + pad)
-        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, order)
+        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, order,
+               _planes(prim[order, 0], prim[order, 1], quad, tri))
         # area lights from emissive shapes
         for i, (kind, j, _, k) in enumerate(prims):
             s = self.shapes[k]
@@ -418,6 +419,29 @@ def _mesh_rows(s, k, tri, tri_n, tri_uv):
     uv = np.zeros(tris.shape[:2] + (2,)) if s.uv is None else np.asarray(s.uv, float)[f]
     tri_uv.extend(uv[keep])
     return range(start, len(tri))
+
+
+def _planes(ptype, pidx, quad, tri):
+    """The intersection kernels' ``planes (PLANE_ROWS, n)`` for primitives of kinds ``ptype``
+    and rows ``pidx`` (in BVH slot order): a parallelogram's normal, corner and dual vectors as
+    :func:`_quad_row` has them; a triangle's with e1 = v1 - v0 and e2 = v2 - v0."""
+    planes = np.zeros((X.PLANE_ROWS, len(ptype)))
+    q = ptype == X.QUAD
+    r = quad[pidx[q]]
+    planes[X.PN:X.PN + 3, q], planes[X.PP:X.PP + 3, q] = r[:, 3].T, r[:, 0].T
+    planes[X.PQ1:X.PQ1 + 3, q], planes[X.PQ2:X.PQ2 + 3, q] = r[:, 4].T, r[:, 5].T
+    t = ptype == X.TRIANGLE
+    v = tri[pidx[t]]
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    n = np.cross(e1, e2)
+    n /= np.linalg.norm(n, axis=1)[:, None]  # degenerate triangles were dropped on reading
+    d1, d2 = np.cross(e2, n), np.cross(n, e1)
+    planes[X.PN:X.PN + 3, t], planes[X.PP:X.PP + 3, t] = n.T, v[:, 0].T
+    planes[X.PQ1:X.PQ1 + 3, t] = (d1 / np.sum(e1 * d1, axis=1)[:, None]).T
+    planes[X.PQ2:X.PQ2 + 3, t] = (d2 / np.sum(e2 * d2, axis=1)[:, None]).T
+    planes[X.PTRI, t] = 1.0
+    planes[X.PSPH, ptype == X.SPHERE] = 1.0
+    return planes
 
 
 def _bounds(ptype, pidx, sph, quad, tri):

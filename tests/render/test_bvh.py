@@ -1,6 +1,6 @@
 """The BVH builder: the tree's invariants (a partition of the primitives, boxes that hold what
-is under them, equal-count splits along the widest centroid axis, small leaves) and closest hits
-through it against a brute-force test of every primitive."""
+is under them, equal-count splits along the widest centroid axis, small leaves) and closest and any hits
+through it (the SIMD leaf test) against a plain numpy test of every primitive."""
 
 import math
 
@@ -71,6 +71,43 @@ def test_a_million_boxes_build_in_seconds():
     assert max(d for _, d in _walk(child)) <= math.ceil(math.log2(1_000_000 / LEAF_SIZE)) + 1
 
 
+def _reference_hit(shapes, o, d):
+    """(t, shape, face) of the nearest hit, plain numpy: Moller-Trumbore on each triangle, the
+    quadratic on the sphere, the plane and edge coordinates on the rectangle."""
+    best = (math.inf, -1, -1)
+    mesh, sphere, rect = shapes
+    v = mesh.vertices[mesh.faces]
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    p = np.cross(d, e2)
+    det = np.sum(e1 * p, axis=1)
+    s = o - v[:, 0]
+    b1 = np.sum(s * p, axis=1) / det
+    q = np.cross(s, e1)
+    b2 = q @ d / det
+    t = np.sum(e2 * q, axis=1) / det
+    ok = (b1 >= 0) & (b2 >= 0) & (b1 + b2 <= 1) & (t > 0)
+    if ok.any():
+        k = np.flatnonzero(ok)[np.argmin(t[ok])]
+        best = (t[k], 0, k)
+    f = o - np.asarray(sphere.centre)
+    b = f @ d
+    disc = b * b - (f @ f - sphere.radius ** 2)
+    if disc >= 0:
+        for t in (-b - math.sqrt(disc), -b + math.sqrt(disc)):
+            if 0 < t < best[0]:
+                best = (t, 1, 0)
+                break
+    c, u, w = np.asarray(rect.corner), np.asarray(rect.edge1), np.asarray(rect.edge2)
+    n = np.cross(u, w)
+    t = (c - o) @ n / (d @ n)
+    if 0 < t < best[0]:
+        h = o + t * d - c
+        a, bb = np.linalg.lstsq(np.stack([u, w], axis=1), h, rcond=None)[0]
+        if 0 <= a <= 1 and 0 <= bb <= 1:
+            best = (t, 2, 0)
+    return best
+
+
 def test_closest_hits_through_the_tree_are_those_of_every_primitive():
     rng = np.random.default_rng(3)
     m = 300
@@ -80,21 +117,36 @@ def test_closest_hits_through_the_tree_are_those_of_every_primitive():
               render.Sphere((0.2, 0.1, 0.0), 0.3),
               render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))]
     geo = render.Scene(shapes=shapes).compile().geo
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, order = geo
+    prim, sph, quad, tri, tri_n, tri_uv, box, child, order, planes = geo
     stack = np.empty(X.STACK, dtype=np.int64)
-    flat_child = np.array([[-1, len(prim)]])        # one leaf holding every primitive
-    flat_box = np.array([[[-1e9] * 3, [1e9] * 3]])
-    flat_order = np.arange(len(prim))
+    dist = np.empty(X.LEAF_SIZE)
     hits = 0
     for _ in range(400):
         o = rng.uniform(-3, 3, 3)
         d = rng.uniform(-1, 1, 3) - o               # towards the soup, most rays hit
         d /= np.linalg.norm(d)
-        got = X.closest_hit(prim, sph, quad, tri, box, child, order, stack, *o, *d, math.inf)
-        want = X.closest_hit(prim, sph, quad, tri, flat_box, flat_child, flat_order, stack,
-                             *o, *d, math.inf)
-        assert got[1] == want[1]
-        if want[1] >= 0:
-            hits += 1
-            assert got[0] == want[0]
+        t, i, a, b = X.closest_hit(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+                                   math.inf)
+        want_t, shape, face = _reference_hit(shapes, o, d)
+        assert X.occluded(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+                          math.inf) == (shape >= 0)
+        if shape < 0:
+            assert i == -1
+            continue
+        hits += 1
+        kinds = (X.TRIANGLE, X.SPHERE, X.QUAD)
+        assert prim[i, 0] == kinds[shape] and (shape != 0 or prim[i, 1] == face)
+        assert t == pytest.approx(want_t, rel=1e-12)
+        # the hit's (a, b) are the triangle's barycentrics, or the rectangle's coordinates
+        hit = o + t * d
+        if shape == 0:
+            v = vertices[3 * face:3 * face + 3]
+            np.testing.assert_allclose(v[0] + a * (v[1] - v[0]) + b * (v[2] - v[0]), hit,
+                                       atol=1e-12)
+        elif shape == 2:
+            np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
+                                       + b * quad[prim[i, 1], 2], hit, atol=1e-12)
+        # nothing before the hit, something just past it
+        assert not X.occluded(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+                              t * (1 - 1e-9))
     assert hits > 200
