@@ -118,6 +118,8 @@ class _Parser:
             self.take(value="]")
             return items
         if tok[0] == "name":
+            if decl is not None and decl.kind == "number":
+                self.fail(tok, f"{decl.name} expects a number or a [list]")
             self.take()
             return tok[1]
         self.fail(tok, "expected a number, a [list] or a name")

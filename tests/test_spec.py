@@ -160,6 +160,9 @@ def test_syntax_errors_name_the_column(spec, column):
     ("ggx(masking=sideways)", "separable, height-correlated"),
     ("ggx(fresnel=fresnell)", "none, schlick, dielectric, conductor"),
     ("ggx(alpha=[0.1,0.2])", "must be a number"),
+    # a name where a number belongs: one line naming the column, not float()'s ValueError
+    ("lambert(albedo=grey)", r"column 16: albedo expects a number or a \[list\], got 'grey'"),
+    ("lambert(grey)", r"column 9: albedo expects a number"),
 ])
 def test_misused_parameters(spec, message):
     with pytest.raises(SpecError, match=message):

@@ -142,9 +142,9 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order, pla
           scratch):
     """Samples s0 .. s1 - 1 of pixel (x, y) into the running sums (see :func:`render_pass`):
     for each, the radiance along its camera ray, and the first hit's albedo estimate (f cos /
-    pdf of one BSDF sample) and shading normal. One call serves all the pixel's samples: a
-    call that takes 40 arrays counts a reference to each, which cost 0.5 us a sample when it
-    was made per sample (a depth-1 Cornell-box sample: 0.76 us then, 0.23 us now). ``state``,
+    pdf of one BSDF sample) and shading normal. One call serves all the pixel's samples: when
+    kernels still counted references, a call per sample cost 0.5 us in counts on its 40
+    arrays (a depth-1 Cornell-box sample: 0.76 us then, 0.23 us with a call per pixel). ``state``,
     ``radiance``, ``aov``, ``f``, ``li``, ``stack``, ``leaf_t`` and ``scratch`` are work space."""
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
