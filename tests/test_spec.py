@@ -175,6 +175,15 @@ def test_empty_or_non_text_specs(bad):
         brdf.parse(bad)
 
 
+def test_text_where_a_number_belongs_is_a_parameter_error():
+    # from a report's JSON and from Python, as from a spec: not numpy's ValueError
+    with pytest.raises(ParameterError, match="albedo must be a number or a list of per-channel "
+                                             "numbers, got 'grey'"):
+        brdf.from_dict({"model": "lambert", "params": {"albedo": "grey"}})
+    with pytest.raises(ParameterError, match=r"alpha must be a number, got \['a'\]"):
+        GGX(alpha=["a"])
+
+
 def test_bad_json():
     with pytest.raises(SpecError, match="line 1 column"):
         brdf.from_json('{"model": "lambert",')

@@ -57,9 +57,12 @@ class Param:
 
     def coerce(self, value, where):
         """Validated float array (shape ``()`` or ``(C,)``) from a spec or Python value."""
-        arr = np.array(value, dtype=float)
+        what = "a number or a list of per-channel numbers" if self.per_channel else "a number"
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):  # a name or other text where a number belongs
+            raise ParameterError(f"{where}: {self.name} must be {what}, got {value!r}") from None
         if arr.ndim > 1 or (arr.ndim == 1 and (not self.per_channel or arr.size == 0)):
-            what = "a number or a list of per-channel numbers" if self.per_channel else "a number"
             raise ParameterError(f"{where}: {self.name} must be {what}, got {value!r}")
         if not np.all(np.isfinite(arr)):
             raise ParameterError(f"{where}: {self.name} must be finite, got {value!r}")
