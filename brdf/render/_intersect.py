@@ -115,13 +115,14 @@ def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
 
 @inline_kernel
 def _slot_hit(prim, sph, order, dist, s, first, ox, oy, oz, dx, dy, dz, tmax):
-    """Distance in (0, tmax) to the primitive in slot s from the leaf pass that began at slot
-    ``first``, the sphere's own test for a sphere; inf on a miss."""
+    """Distance to the primitive in slot s from the leaf pass that began at slot ``first``
+    (which held it to the pass's tmax), the sphere's own test in (0, tmax) for a sphere; inf
+    on a miss."""
     t = dist[s - first]
     if t < 0.0:
         t = hit_sphere(sph[prim[order[s], 1]], ox, oy, oz, dx, dy, dz, tmax)
         return t if t > 0.0 else math.inf
-    return t if t < tmax else math.inf
+    return t
 
 
 @inline_kernel

@@ -392,14 +392,19 @@ class Scene:
 def _quad_row(s, k):
     c, e1, e2 = (_vec(s.corner, f"shape {k} corner"), _vec(s.edge1, f"shape {k} edge1"),
                  _vec(s.edge2, f"shape {k} edge2"))
-    n = np.cross(e1, e2)
-    area = np.linalg.norm(n)
-    if area == 0:
+    if np.linalg.norm(np.cross(e1, e2)) == 0:
         raise InputError(f"shape {k} (quad): edges are parallel")
-    n = n / area
-    d1 = np.cross(e2, n)
-    d2 = np.cross(n, e1)
-    return np.stack([c, e1, e2, n, d1 / (e1 @ d1), d2 / (e2 @ d2)])
+    n, q1, q2 = _plane_frame(e1[None], e2[None])
+    return np.stack([c, e1, e2, n[0], q1[0], q2[0]])
+
+
+def _plane_frame(e1, e2):
+    """Unit normals n = e1 x e2 / |e1 x e2| and the dual vectors q1, q2 of the planes spanned
+    by rows of ``e1, e2 (m, 3)``: (x - p) . q1 = a and (x - p) . q2 = b for x = p + a e1 + b e2."""
+    n = np.cross(e1, e2)
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    d1, d2 = np.cross(e2, n), np.cross(n, e1)
+    return n, d1 / np.sum(e1 * d1, axis=1)[:, None], d2 / np.sum(e2 * d2, axis=1)[:, None]
 
 
 def _mesh_rows(s, k, tri, tri_n, tri_uv):
@@ -432,13 +437,10 @@ def _planes(ptype, pidx, quad, tri):
     planes[X.PQ1:X.PQ1 + 3, q], planes[X.PQ2:X.PQ2 + 3, q] = r[:, 4].T, r[:, 5].T
     t = ptype == X.TRIANGLE
     v = tri[pidx[t]]
-    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
-    n = np.cross(e1, e2)
-    n /= np.linalg.norm(n, axis=1)[:, None]  # degenerate triangles were dropped on reading
-    d1, d2 = np.cross(e2, n), np.cross(n, e1)
+    # degenerate triangles were dropped on reading
+    n, q1, q2 = _plane_frame(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
     planes[X.PN:X.PN + 3, t], planes[X.PP:X.PP + 3, t] = n.T, v[:, 0].T
-    planes[X.PQ1:X.PQ1 + 3, t] = (d1 / np.sum(e1 * d1, axis=1)[:, None]).T
-    planes[X.PQ2:X.PQ2 + 3, t] = (d2 / np.sum(e2 * d2, axis=1)[:, None]).T
+    planes[X.PQ1:X.PQ1 + 3, t], planes[X.PQ2:X.PQ2 + 3, t] = q1.T, q2.T
     planes[X.PTRI, t] = 1.0
     planes[X.PSPH, ptype == X.SPHERE] = 1.0
     return planes
