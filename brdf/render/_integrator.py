@@ -13,7 +13,7 @@ from numba import prange
 
 from .._jit import inline_kernel, kernel, parallel_kernel
 from .. import sampling
-from ._intersect import LEAF_SIZE, QUAD, SPHERE, STACK, closest_hit, occluded
+from ._intersect import LANES, QUAD, SPHERE, STACK, closest_hit, occluded
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
                       pick_light, sample_light)
 from ._materials import bsdf_eval, bsdf_pdf, bsdf_sample, material_params
@@ -135,7 +135,7 @@ def _camera_ray(cam, opts, x, y, state):
 
 
 @kernel
-def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order, planes,
+def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
           mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
           ltype, lf, pmf, gonio, env, rows, cols, env_light,
           seed, x, y, s0, s1, acc, acc2, aov_acc, state, radiance, aov, f, li, stack, leaf_t,
@@ -159,7 +159,7 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order, pla
         specular = True
         prev_pdf = 0.0
         for depth in range(opts[DEPTH]):
-            t, hit, a, b = closest_hit(prim, sph, planes, box, child, order, stack, leaf_t,
+            t, hit, a, b = closest_hit(prim, sph, planes, box, child, slots, stack, leaf_t,
                                        ox, oy, oz, dx, dy, dz, math.inf)
             if hit < 0:
                 if env_light >= 0 and (strategy != LIGHT or specular):
@@ -211,7 +211,7 @@ def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order, pla
                     if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
                             and ldx * nx + ldy * ny + ldz * nz > 0.0):
                         tmax = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
-                        if not occluded(prim, sph, planes, box, child, order, stack, leaf_t,
+                        if not occluded(prim, sph, planes, box, child, slots, stack, leaf_t,
                                         qx, qy, qz, ldx, ldy, ldz, tmax):
                             lx = ldx * ax + ldy * ay + ldz * az
                             ly = ldx * bx + ldy * by + ldz * bz
@@ -273,7 +273,7 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
     opts[TILE]^2 pixels are the parallel work items; ``trace`` runs a pixel's samples. The
     scene's tuples are unpacked here, once (see :mod:`._intersect` on why the kernels take
     plain arrays)."""
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, order, planes = geo
+    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
     mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
     ltype, lf, pmf, gonio, env, rows, cols, env_light = lights
     w, h, tile = opts[W], opts[H], opts[TILE]
@@ -286,12 +286,12 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
         f = np.zeros((1, 3))
         li = np.empty(3)
         stack = np.empty(STACK, dtype=np.int64)
-        leaf_t = np.empty(LEAF_SIZE)
+        leaf_t = np.empty(LANES)
         scratch = np.empty(max(params.shape[0], 1))
         x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
         for y in range(y0, min(y0 + tile, h)):
             for x in range(x0, min(x0 + tile, w)):
-                trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, order, planes,
+                trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
                       mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
                       ltype, lf, pmf, gonio, env, rows, cols, env_light,
                       seed, x, y, s0, s1, acc, acc2, aov_acc, state, radiance, aov, f, li,

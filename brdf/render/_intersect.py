@@ -15,12 +15,13 @@ Geometry arrays (see :class:`brdf.render.scene.Compiled`):
 - ``tri (nt, 3, 3)`` vertices, ``tri_n (nt, 3, 3)`` vertex normals (zero rows: flat shading),
   ``tri_uv (nt, 3, 2)``;
 - BVH nodes ``box (nn, 2, 3)`` (lower and upper corners) and ``child (nn, 2)``: an inner node
-  holds its two children, a leaf ``(-start - 1, count)`` into ``order``, the primitive in
-  each slot (built by :mod:`.bvh`);
-- ``planes (PLANE_ROWS, n)``: the intersection data of the primitive in each slot, one row per
-  field (normal, corner, q1, q2, a triangle flag, a sphere flag) so that a leaf's primitives
-  are tested side by side in SIMD lanes (:func:`leaf_distances`); a sphere's column holds
-  only its flag.
+  holds its two children, a leaf ``(-first - 1, count)``: its primitives fill ``count`` blocks
+  of LANES slots from block ``first`` on, and ``slots (nb * LANES,)`` holds the primitive in
+  each slot, -1 in the padding that ends a leaf's last block (built by :mod:`.bvh`);
+- ``planes (nb, PLANE_ROWS, LANES)``: the intersection data of the primitive in each slot of
+  each block, one row per field (normal, corner, q1, q2, a triangle flag, a sphere flag) so
+  that a block's primitives are tested side by side in SIMD lanes (:func:`leaf_distances`);
+  a sphere's column holds only its flag, a padding slot's only zeros (a miss).
 """
 
 import math
@@ -33,9 +34,14 @@ SPHERE, QUAD, TRIANGLE = 0, 1, 2
 #: rows of ``planes``: normal, corner, dual vectors q1 and q2, triangle flag, sphere flag
 PN, PP, PQ1, PQ2, PTRI, PSPH = 0, 3, 6, 9, 12, 13
 PLANE_ROWS = 14
-#: Primitives per BVH leaf at most (the builder's bound, and the leaf pass's width: two
-#: AVX-512 registers of doubles); leaves of coincident centroids are tested LEAF_SIZE at a time.
+#: Primitives per BVH leaf at most (the builder's bound; leaves of coincident centroids hold
+#: more, in more blocks).
 LEAF_SIZE = 16
+#: Slots per leaf block, the leaf pass's fixed width. LLVM vectorises a loop of this constant
+#: length (four AVX2 or two AVX-512 registers of doubles) with no remainder and no trip-count
+#: test; a leaf of 9 primitives looped over its own count ran scalar, and a length of 8 is
+#: unrolled instead of vectorised.
+LANES = 16
 #: Depth of the traversal stack (a median-split tree over 2^60 primitives fits).
 STACK = 64
 
@@ -65,37 +71,40 @@ def hit_sphere(s, ox, oy, oz, dx, dy, dz, tmax):
 
 
 @kernel
-def leaf_distances(planes, start, end, ox, oy, oz, dx, dy, dz, tmax, dist):
-    """Distances in (0, tmax) of the ray to the planar primitives in slots ``start .. end - 1``
-    into ``dist[:end - start]``: inf on a miss, -1 for a sphere (tested apart).
+def leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist):
+    """Distances in (0, tmax) of the ray to the planar primitives in the LANES slots of block
+    ``blk`` into ``dist``: inf on a miss (and in padding), -1 for a sphere (tested apart).
 
     One formula for parallelograms and triangles, x = p + a e1 + b e2 with a, b >= 0 and
     max(a, b) <= 1 or a + b <= 1 (the plane, then the dual-basis coordinates; for a triangle
     they are Moller and Trumbore's barycentrics b1, b2). Free of branches, so LLVM runs it
-    across the primitives in SIMD lanes: 18 quads in 29 ns a ray, where a test of one
-    primitive at a time took 248 ns, its branches mispredicted on random rays. A ray parallel
-    to the plane divides by zero, and the inf or NaN it gives fails the tests."""
-    for s in range(start, end):
-        nx, ny, nz = planes[PN, s], planes[PN + 1, s], planes[PN + 2, s]
-        px, py, pz = planes[PP, s] - ox, planes[PP + 1, s] - oy, planes[PP + 2, s] - oz
+    across the slots in SIMD lanes, where a test of one primitive at a time mispredicted its
+    branches on random rays. A ray parallel to the plane divides by zero, and the inf or NaN
+    it gives fails the tests, as the 0 / 0 of a padding slot's zero normal does."""
+    for j in range(LANES):
+        nx, ny, nz = planes[blk, PN, j], planes[blk, PN + 1, j], planes[blk, PN + 2, j]
+        px = planes[blk, PP, j] - ox
+        py = planes[blk, PP + 1, j] - oy
+        pz = planes[blk, PP + 2, j] - oz
         t = (px * nx + py * ny + pz * nz) / (dx * nx + dy * ny + dz * nz)
         hx, hy, hz = t * dx - px, t * dy - py, t * dz - pz
-        a = hx * planes[PQ1, s] + hy * planes[PQ1 + 1, s] + hz * planes[PQ1 + 2, s]
-        b = hx * planes[PQ2, s] + hy * planes[PQ2 + 1, s] + hz * planes[PQ2 + 2, s]
-        edge = max(a, b) + planes[PTRI, s] * min(a, b)
+        a = hx * planes[blk, PQ1, j] + hy * planes[blk, PQ1 + 1, j] + hz * planes[blk, PQ1 + 2, j]
+        b = hx * planes[blk, PQ2, j] + hy * planes[blk, PQ2 + 1, j] + hz * planes[blk, PQ2 + 2, j]
+        edge = max(a, b) + planes[blk, PTRI, j] * min(a, b)
         inside = (t > 0.0) & (t < tmax) & (a >= 0.0) & (b >= 0.0) & (edge <= 1.0)
         d = t if inside else math.inf
-        dist[s - start] = -1.0 if planes[PSPH, s] != 0.0 else d
+        dist[j] = -1.0 if planes[blk, PSPH, j] != 0.0 else d
 
 
 @kernel
-def plane_coordinates(planes, s, ox, oy, oz, dx, dy, dz, t):
-    """(a, b) of the hit at distance t on the planar primitive in slot s."""
-    hx = ox + t * dx - planes[PP, s]
-    hy = oy + t * dy - planes[PP + 1, s]
-    hz = oz + t * dz - planes[PP + 2, s]
-    return (hx * planes[PQ1, s] + hy * planes[PQ1 + 1, s] + hz * planes[PQ1 + 2, s],
-            hx * planes[PQ2, s] + hy * planes[PQ2 + 1, s] + hz * planes[PQ2 + 2, s])
+def plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t):
+    """(a, b) of the hit at distance t on the planar primitive in ``slot``."""
+    b, j = slot // LANES, slot % LANES
+    hx = ox + t * dx - planes[b, PP, j]
+    hy = oy + t * dy - planes[b, PP + 1, j]
+    hz = oz + t * dz - planes[b, PP + 2, j]
+    return (hx * planes[b, PQ1, j] + hy * planes[b, PQ1 + 1, j] + hz * planes[b, PQ1 + 2, j],
+            hx * planes[b, PQ2, j] + hy * planes[b, PQ2 + 1, j] + hz * planes[b, PQ2 + 2, j])
 
 
 # --- hierarchy -------------------------------------------------------------------------------
@@ -114,22 +123,21 @@ def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
 
 
 @inline_kernel
-def _slot_hit(prim, sph, order, dist, s, first, ox, oy, oz, dx, dy, dz, tmax):
-    """Distance to the primitive in slot s from the leaf pass that began at slot ``first``
-    (which held it to the pass's tmax), the sphere's own test in (0, tmax) for a sphere; inf
-    on a miss."""
-    t = dist[s - first]
+def _slot_hit(prim, sph, slots, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
+    """Distance to the primitive in ``slot``, lane j of the leaf pass (which held it to the
+    pass's tmax), the sphere's own test in (0, tmax) for a sphere; inf on a miss."""
+    t = dist[j]
     if t < 0.0:
-        t = hit_sphere(sph[prim[order[s], 1]], ox, oy, oz, dx, dy, dz, tmax)
+        t = hit_sphere(sph[prim[slots[slot], 1]], ox, oy, oz, dx, dy, dz, tmax)
         return t if t > 0.0 else math.inf
     return t
 
 
 @inline_kernel
-def closest_hit(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, dx, dy, dz,
+def closest_hit(prim, sph, planes, box, child, slots, stack, dist, ox, oy, oz, dx, dy, dz,
                 tmax):
     """``(t, primitive, a, b)`` of the nearest hit in (0, tmax); primitive -1 on a miss.
-    ``stack`` (STACK integers) and ``dist`` (LEAF_SIZE numbers) are scratch space."""
+    ``stack`` (STACK integers) and ``dist`` (LANES numbers) are scratch space."""
     rx = 1.0 / dx if dx != 0.0 else math.inf
     ry = 1.0 / dy if dy != 0.0 else math.inf
     rz = 1.0 / dz if dz != 0.0 else math.inf
@@ -143,12 +151,11 @@ def closest_hit(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, d
             continue
         c0, c1 = child[n, 0], child[n, 1]
         if c0 < 0:
-            # a leaf, LEAF_SIZE slots at a time (leaves of coincident centroids hold more)
-            for first in range(-c0 - 1, -c0 - 1 + c1, LEAF_SIZE):
-                last = min(first + LEAF_SIZE, -c0 - 1 + c1)
-                leaf_distances(planes, first, last, ox, oy, oz, dx, dy, dz, best, dist)
-                for s in range(first, last):
-                    t = _slot_hit(prim, sph, order, dist, s, first, ox, oy, oz, dx, dy, dz, best)
+            for blk in range(-c0 - 1, -c0 - 1 + c1):
+                leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, best, dist)
+                for j in range(LANES):
+                    s = blk * LANES + j
+                    t = _slot_hit(prim, sph, slots, dist, s, j, ox, oy, oz, dx, dy, dz, best)
                     if t < best:
                         best, slot = t, s
         else:
@@ -171,7 +178,7 @@ def closest_hit(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, d
                     top += 1
     if slot < 0:
         return best, -1, 0.0, 0.0
-    i = order[slot]
+    i = slots[slot]
     if prim[i, 0] == SPHERE:
         return best, i, 0.0, 0.0
     a, b = plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, best)
@@ -179,7 +186,7 @@ def closest_hit(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, d
 
 
 @inline_kernel
-def occluded(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, dx, dy, dz, tmax):
+def occluded(prim, sph, planes, box, child, slots, stack, dist, ox, oy, oz, dx, dy, dz, tmax):
     """Whether anything lies on the ray within (0, tmax) (any hit ends the search)."""
     rx = 1.0 / dx if dx != 0.0 else math.inf
     ry = 1.0 / dy if dy != 0.0 else math.inf
@@ -193,12 +200,11 @@ def occluded(prim, sph, planes, box, child, order, stack, dist, ox, oy, oz, dx, 
             continue
         c0, c1 = child[n, 0], child[n, 1]
         if c0 < 0:
-            for first in range(-c0 - 1, -c0 - 1 + c1, LEAF_SIZE):
-                last = min(first + LEAF_SIZE, -c0 - 1 + c1)
-                leaf_distances(planes, first, last, ox, oy, oz, dx, dy, dz, tmax, dist)
-                for s in range(first, last):
-                    if _slot_hit(prim, sph, order, dist, s, first, ox, oy, oz, dx, dy, dz,
-                                 tmax) < math.inf:
+            for blk in range(-c0 - 1, -c0 - 1 + c1):
+                leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist)
+                for j in range(LANES):
+                    if _slot_hit(prim, sph, slots, dist, blk * LANES + j, j, ox, oy, oz, dx, dy,
+                                 dz, tmax) < math.inf:
                         return True
         else:
             stack[top] = c0

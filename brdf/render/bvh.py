@@ -11,9 +11,9 @@ partitioned stably, and the boxes are made bottom-up. Nothing to compile (a numb
 
 import numpy as np
 
-from ._intersect import LEAF_SIZE
+from ._intersect import LANES, LEAF_SIZE
 
-__all__ = ["build_bvh", "LEAF_SIZE"]
+__all__ = ["build_bvh", "block_leaves", "LEAF_SIZE"]
 
 
 def _ranges(start, count):
@@ -91,3 +91,24 @@ def build_bvh(lo, hi):
         box[ids[inner], 0] = np.minimum(box[a, 0], box[b, 0])
         box[ids[inner], 1] = np.maximum(box[a, 1], box[b, 1])
     return box, child, order
+
+
+def block_leaves(child, order, lanes=LANES):
+    """The tree of :func:`build_bvh` with each leaf's primitives in blocks of ``lanes`` slots,
+    the leaf pass's fixed width.
+
+    Returns ``child`` with each leaf as ``(-first - 1, count)``, its ``count`` blocks starting
+    at block ``first``, and ``slots (nb * lanes,)``: the primitive in each slot, leaf by leaf
+    in the tree's order, -1 in the padding at the end of each leaf's last block.
+    """
+    leaf = np.flatnonzero(child[:, 0] < 0)
+    start, count = -child[leaf, 0] - 1, child[leaf, 1]
+    blocks = -(-count // lanes)
+    first_block = np.cumsum(blocks) - blocks
+    pos, first = _ranges(start, count)
+    seg = np.repeat(np.arange(leaf.size), count)
+    slots = np.full(int(blocks.sum()) * lanes, -1, dtype=np.int64)
+    slots[first_block[seg] * lanes + np.arange(pos.size) - first[seg]] = order[pos]
+    out = child.copy()
+    out[leaf, 0], out[leaf, 1] = -first_block - 1, blocks
+    return out, slots

@@ -15,7 +15,7 @@ from ..errors import InputError
 from . import _intersect as X
 from . import _lights as L
 from . import _materials as M
-from .bvh import build_bvh
+from .bvh import block_leaves, build_bvh
 
 __all__ = ["Camera", "Sphere", "Quad", "Mesh", "box", "rectangle", "Material", "PointLight",
            "SpotLight", "DirectionalLight", "GoniometricLight", "Environment", "Scene"]
@@ -312,7 +312,7 @@ _SIDES = {"front": L.FRONT, "back": L.BACK, "both": L.FRONT | L.BACK}
 
 class Compiled:
     """The kernels' view of a scene: the ``geo`` arrays (prim, sph, quad, tri, tri_n, tri_uv,
-    BVH boxes, children, order, planes), ``mats`` (see ``_materials``) and ``lights`` (see
+    BVH boxes, children, slots, planes), ``mats`` (see ``_materials``) and ``lights`` (see
     ``_lights``)."""
 
     def __init__(self, geo, mats, lights, bounds):
@@ -366,9 +366,10 @@ class Scene:
         lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
-        nodes, child, order = build_bvh(lo - pad, hi + pad)
-        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, order,
-               _planes(prim[order, 0], prim[order, 1], quad, tri))
+        nodes, child, slots = build_bvh(lo - pad, hi + pad)
+        child, slots = block_leaves(child, slots)
+        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
+               _planes(prim, slots, quad, tri))
         # area lights from emissive shapes
         for i, (kind, j, _, k) in enumerate(prims):
             s = self.shapes[k]
@@ -426,11 +427,13 @@ def _mesh_rows(s, k, tri, tri_n, tri_uv):
     return range(start, len(tri))
 
 
-def _planes(ptype, pidx, quad, tri):
-    """The intersection kernels' ``planes (PLANE_ROWS, n)`` for primitives of kinds ``ptype``
-    and rows ``pidx`` (in BVH slot order): a parallelogram's normal, corner and dual vectors as
+def _planes(prim, slots, quad, tri):
+    """The intersection kernels' ``planes (nb, PLANE_ROWS, LANES)`` for the primitives in
+    ``slots`` (-1: padding, all zeros): a parallelogram's normal, corner and dual vectors as
     :func:`_quad_row` has them; a triangle's with e1 = v1 - v0 and e2 = v2 - v0."""
-    planes = np.zeros((X.PLANE_ROWS, len(ptype)))
+    planes = np.zeros((X.PLANE_ROWS, len(slots)))
+    ptype = np.where(slots >= 0, prim[slots, 0], -1)
+    pidx = prim[slots, 1]
     q = ptype == X.QUAD
     r = quad[pidx[q]]
     planes[X.PN:X.PN + 3, q], planes[X.PP:X.PP + 3, q] = r[:, 3].T, r[:, 0].T
@@ -443,7 +446,7 @@ def _planes(ptype, pidx, quad, tri):
     planes[X.PQ1:X.PQ1 + 3, t], planes[X.PQ2:X.PQ2 + 3, t] = q1.T, q2.T
     planes[X.PTRI, t] = 1.0
     planes[X.PSPH, ptype == X.SPHERE] = 1.0
-    return planes
+    return np.ascontiguousarray(planes.reshape(X.PLANE_ROWS, -1, X.LANES).transpose(1, 0, 2))
 
 
 def _bounds(ptype, pidx, sph, quad, tri):

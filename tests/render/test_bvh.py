@@ -9,7 +9,7 @@ import pytest
 
 from brdf import render
 from brdf.render import _intersect as X
-from brdf.render.bvh import LEAF_SIZE, build_bvh
+from brdf.render.bvh import LEAF_SIZE, block_leaves, build_bvh
 
 
 def _boxes(n, seed, ties=False):
@@ -71,6 +71,24 @@ def test_a_million_boxes_build_in_seconds():
     assert max(d for _, d in _walk(child)) <= math.ceil(math.log2(1_000_000 / LEAF_SIZE)) + 1
 
 
+@pytest.mark.parametrize("n, ties", [(1, False), (17, False), (2000, False), (2000, True)])
+def test_leaf_blocks_hold_each_leaf_and_nothing_else(n, ties):
+    lo, hi = _boxes(n, n, ties)
+    box, child, order = build_bvh(lo, hi)
+    blocked, slots = block_leaves(child, order, lanes=8)
+    assert slots.size % 8 == 0 and sorted(slots[slots >= 0]) == list(range(n))
+    for node in np.flatnonzero(child[:, 0] < 0):
+        start, count = -child[node, 0] - 1, child[node, 1]
+        first, blocks = -blocked[node, 0] - 1, blocked[node, 1]
+        assert blocks == -(-count // 8)
+        held = slots[8 * first:8 * (first + blocks)]
+        # the leaf's primitives in its order, then padding to the end of its last block
+        np.testing.assert_array_equal(held[:count], order[start:start + count])
+        assert np.all(held[count:] == -1)
+    inner = child[:, 0] >= 0
+    np.testing.assert_array_equal(blocked[inner], child[inner])
+
+
 def _reference_hit(shapes, o, d):
     """(t, shape, face) of the nearest hit, plain numpy: Moller-Trumbore on each triangle, the
     quadratic on the sphere, the plane and edge coordinates on the rectangle."""
@@ -117,18 +135,18 @@ def test_closest_hits_through_the_tree_are_those_of_every_primitive():
               render.Sphere((0.2, 0.1, 0.0), 0.3),
               render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))]
     geo = render.Scene(shapes=shapes).compile().geo
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, order, planes = geo
+    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
     stack = np.empty(X.STACK, dtype=np.int64)
-    dist = np.empty(X.LEAF_SIZE)
+    dist = np.empty(X.LANES)
     hits = 0
     for _ in range(400):
         o = rng.uniform(-3, 3, 3)
         d = rng.uniform(-1, 1, 3) - o               # towards the soup, most rays hit
         d /= np.linalg.norm(d)
-        t, i, a, b = X.closest_hit(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+        t, i, a, b = X.closest_hit(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
                                    math.inf)
         want_t, shape, face = _reference_hit(shapes, o, d)
-        assert X.occluded(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+        assert X.occluded(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
                           math.inf) == (shape >= 0)
         if shape < 0:
             assert i == -1
@@ -147,6 +165,6 @@ def test_closest_hits_through_the_tree_are_those_of_every_primitive():
             np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
                                        + b * quad[prim[i, 1], 2], hit, atol=1e-12)
         # nothing before the hit, something just past it
-        assert not X.occluded(prim, sph, planes, box, child, order, stack, dist, *o, *d,
+        assert not X.occluded(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
                               t * (1 - 1e-9))
     assert hits > 200
