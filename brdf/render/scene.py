@@ -366,8 +366,8 @@ class Scene:
         lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
-        nodes, child, slots = build_bvh(lo - pad, hi + pad)
-        child, slots = block_leaves(child, slots)
+        nodes, child, order = build_bvh(lo - pad, hi + pad)
+        child, slots = block_leaves(child, order)
         geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
                _planes(prim, slots, quad, tri))
         # area lights from emissive shapes
