@@ -32,7 +32,7 @@ __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh"
 
 STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
 #: Pixels along a side of the square tiles that the threads share out.
-TILE = 8
+TILE = 16
 
 
 @dataclass

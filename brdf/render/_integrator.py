@@ -1,9 +1,16 @@
 """The path tracer's kernel: unidirectional path tracing with next-event estimation, multiple
 importance sampling and Russian roulette, parallel over image tiles.
 
+A thread traces the paths of its tile in a packet of PACKET paths in flight, bounce by bounce
+(a wavefront within the tile; Laine et al. 2013, "Megakernels Considered Harmful"): the
+packet's rays are traced through the tree together (:func:`._intersect.trace_packet`), each
+path's vertex is set up on its own, then the paths on each material are shaded together
+(:mod:`._materials`, one lobe at a time over them), and the shadow rays go through the tree
+together again. A finished path's lane takes the tile's next (pixel, sample) pair at once.
+
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
-so an image is the same to the last bit whatever the number of threads or of passes the
-samples are split into.
+and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
+bit whatever the number of threads.
 """
 
 import math
@@ -13,10 +20,10 @@ from numba import prange
 
 from .._jit import inline_kernel, kernel, parallel_kernel
 from .. import sampling
-from ._intersect import LANES, QUAD, SPHERE, STACK, closest_hit, occluded
+from ._intersect import LANES, PACKET, QUAD, SPHERE, STACK, plane_coordinates, trace_packet
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
                       pick_light, sample_light)
-from ._materials import bsdf_eval, bsdf_pdf, bsdf_sample, material_params
+from ._materials import K0, K1, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile
@@ -42,10 +49,10 @@ def _stream(seed, pixel, s):
 
 
 @inline_kernel
-def _uniform(state):
-    """Next number in [0, 1) (53 random bits) of a stream held in ``state[0]``."""
-    state[0] += _GOLDEN
-    return float(_mix(state[0]) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+def _uniform(state, j):
+    """Next number in [0, 1) (53 random bits) of the stream held in ``state[j]``."""
+    state[j] += _GOLDEN
+    return float(_mix(state[j]) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 # --- geometry at a hit --------------------------------------------------------------------------
@@ -119,12 +126,37 @@ def _power(a, b):
     return a2 / (a2 + b2) if a2 + b2 > 0.0 else 0.0
 
 
-# --- one path ---------------------------------------------------------------------------------
+# --- the packet of paths ----------------------------------------------------------------------
+#
+# A path's state lives in lane j of the work arrays: ``fl`` (float rows below; rows 0-5 are the
+# ray it traces next, as :func:`trace_packet` reads them), ``il`` (integer rows), ``state``
+# (its random stream), ``sh`` (its shadow ray: rows 0-5, and 6 the ray's length), ``q`` and
+# ``f`` (the BSDF's query sets and values, :func:`._materials.bsdf_shade`: 0 towards the
+# light, 1 the sampled direction) and ``lp`` (the packed parameters of its material).
+
+#: rows of ``fl``: the ray, its hit distance, throughput, radiance, the density of the last
+#: bounce; the vertex's geometric and shading normals, tangent and bitangent, the ray origin
+#: off the surface; the light sample's radiance, density and light probability, the BSDF
+#: sample's uniform pair, and the first-hit layers
+(OX, OY, OZ, DX, DY, DZ, T, THR, RAD, PREV, NX, NY, NZ, SX, SY, SZ, AX, AY, AZ, BX, BY, BZ,
+ QX, QY, QZ, LI, LPDF, LPICK, U1, U2, AOV) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17,
+                                              18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29,
+                                              32, 33, 34, 35, 36)
+FLOAT_ROWS = AOV + 6
+#: rows of ``il``: the path is in flight, its pixel, depth (segments traced), whether the last
+#: bounce was specular, the slot its ray hit, its material, whether it casts a shadow ray,
+#: what that ray hit, whether the path ends at this vertex, work space of the tracing (whether
+#: a ray enters a node) and of the shading (the lobe each path sampled, the lengths of the lists
+#: of lanes, five lists)
+(ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
+ LIST) = range(14)
+INT_ROWS = LIST + 5
+
 
 @inline_kernel
-def _camera_ray(cam, opts, x, y, state):
-    jx = _uniform(state) if opts[JITTER] else 0.5
-    jy = _uniform(state) if opts[JITTER] else 0.5
+def _camera_ray(cam, opts, x, y, state, j):
+    jx = _uniform(state, j) if opts[JITTER] else 0.5
+    jy = _uniform(state, j) if opts[JITTER] else 0.5
     sx = 2.0 * (x + jx) / opts[W] - 1.0
     sy = 1.0 - 2.0 * (y + jy) / opts[H]
     dx = cam[3] + sx * cam[6] + sy * cam[9]
@@ -135,164 +167,288 @@ def _camera_ray(cam, opts, x, y, state):
 
 
 @kernel
-def trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
-          mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
-          ltype, lf, pmf, gonio, env, rows, cols, env_light,
-          seed, x, y, s0, s1, acc, acc2, aov_acc, state, radiance, aov, f, li, stack, leaf_t,
-          scratch):
-    """Samples s0 .. s1 - 1 of pixel (x, y) into the running sums (see :func:`render_pass`):
-    for each, the radiance along its camera ray, and the first hit's albedo estimate (f cos /
-    pdf of one BSDF sample) and shading normal. One call serves all the pixel's samples: when
-    kernels still counted references, a call per sample cost 0.5 us in counts on its 40
-    arrays (a depth-1 Cornell-box sample: 0.76 us then, 0.23 us with a call per pixel). ``state``,
-    ``radiance``, ``aov``, ``f``, ``li``, ``stack``, ``leaf_t`` and ``scratch`` are work space."""
+def _launch(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state):
+    """Give every idle lane the tile's next (pixel, sample) pair, from pair ``start`` of
+    ``total`` (pixel-major within a sample, so a packet's camera rays are neighbours); return
+    the next pair and the number of paths in flight."""
+    busy = 0
+    for j in range(PACKET):
+        if not il[ALIVE, j] and start < total:
+            k = start % npix
+            x, y = x0 + k % tw, y0 + k // tw
+            start += 1
+            state[j] = _stream(seed, y * opts[W] + x, s0 + (start - 1) // npix)
+            fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j] = _camera_ray(
+                cam, opts, x, y, state, j)
+            for c in range(3):
+                fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
+            for c in range(6):
+                fl[AOV + c, j] = 0.0
+            fl[PREV, j] = 0.0
+            il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
+            il[SPECULAR, j] = 1
+        fl[T, j] = math.inf if il[ALIVE, j] else -1.0
+        busy += il[ALIVE, j]
+    return start, busy
+
+
+@kernel
+def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, params, bind,
+              tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl, il, state,
+              sh, q, lp, li):
+    """Each path at the vertex its ray found: emission seen there (or the environment on a
+    miss), the end of the path or its shading frame, parameters and next-event sample (the
+    shadow ray in ``sh``, idle with length -1 when there is none), and the pair of numbers its
+    BSDF sample will use. Returns the number of paths to shade."""
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
-    for sample in range(s0, s1):
-        state[0] = _stream(seed, y * opts[W] + x, sample)
-        for c in range(6):
-            aov[c] = 0.0
+    shading = 0
+    for j in range(PACKET):
+        il[NEE, j], il[END, j] = 0, 0
+        sh[6, j] = -1.0
+        if not il[ALIVE, j]:
+            continue
+        specular = il[SPECULAR, j] != 0
+        ox, oy, oz, dx, dy, dz = fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j]
+        slot = il[HIT, j]
+        if slot < 0:
+            if env_light >= 0 and (strategy != LIGHT or specular):
+                w = 1.0
+                if not specular and strategy == MIS:
+                    w = _power(fl[PREV, j], pmf[env_light] * env_pdf(lf, env, rows, cols,
+                                                                     env_light, dx, dy, dz))
+                le0, le1, le2 = env_radiance(lf, env, env_light, dx, dy, dz)
+                fl[RAD, j] += fl[THR, j] * w * le0
+                fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
+                fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
+            il[END, j] = 1
+            continue
+        t = fl[T, j]
+        hit = slots[slot]
+        a, b = 0.0, 0.0
+        if prim[hit, 0] != SPHERE:
+            a, b = plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t)
+        px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
+        nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,
+                                                            hit, a, b, px, py, pz)
+        light = prim[hit, 3]
+        if light >= 0 and emits_towards(lf[light], nx, ny, nz, -dx, -dy, -dz):
+            if strategy != LIGHT or specular:
+                w = 1.0
+                if not specular and strategy == MIS:
+                    w = _power(fl[PREV, j], pmf[light] * area_pdf(prim, sph, lf[light], ox, oy,
+                                                                  oz, px, py, pz, nx, ny, nz))
+                for c in range(3):
+                    fl[RAD + c, j] += fl[THR + c, j] * w * lf[light, 3 + c]
+        m = prim[hit, 2]
+        if il[DEPTH_, j] + 1 >= opts[DEPTH] or m < 0:
+            il[END, j] = 1
+            continue
+        # shade on the side the ray arrives from (two-sided surfaces)
+        if nx * dx + ny * dy + nz * dz > 0.0:
+            nx, ny, nz = -nx, -ny, -nz
+        if sx * nx + sy * ny + sz * nz < 0.0:
+            sx, sy, sz = -sx, -sy, -sz
+        ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
+        fl[NX, j], fl[NY, j], fl[NZ, j], fl[SX, j], fl[SY, j], fl[SZ, j] = nx, ny, nz, sx, sy, sz
+        fl[AX, j], fl[AY, j], fl[AZ, j], fl[BX, j], fl[BY, j], fl[BZ, j] = ax, ay, az, bx, by, bz
+        for s in range(2):
+            q[s, 3, j] = -(dx * ax + dy * ay + dz * az)
+            q[s, 4, j] = -(dx * bx + dy * by + dz * bz)
+            q[s, 5, j] = -(dx * sx + dy * sy + dz * sz)
+        material_params(mint, params, bind, tex, texmeta, m, u, v, lp[j])
+        il[MAT, j] = m
+        qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
+        fl[QX, j], fl[QY, j], fl[QZ, j] = qx, qy, qz
+        # next-event estimation: a light, a point or direction on it, and its shadow ray
+        if nlights > 0:
+            l, ul = pick_light(pmf, _uniform(state, j))
+            u2 = _uniform(state, j)
+            if strategy != BSDF or (ltype[l] != AREA and ltype[l] != ENV):
+                ldx, ldy, ldz, dist, lpdf = sample_light(ltype, lf, gonio, env, rows, cols, prim,
+                                                         sph, quad, l, qx, qy, qz, ul, u2, li)
+                if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
+                        and ldx * nx + ldy * ny + ldz * nz > 0.0):
+                    il[NEE, j] = 1
+                    sh[0, j], sh[1, j], sh[2, j], sh[3, j], sh[4, j], sh[5, j] = (qx, qy, qz, ldx,
+                                                                                   ldy, ldz)
+                    sh[6, j] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+                    q[0, 0, j] = ldx * ax + ldy * ay + ldz * az
+                    q[0, 1, j] = ldx * bx + ldy * by + ldz * bz
+                    q[0, 2, j] = ldx * sx + ldy * sy + ldz * sz
+                    for c in range(3):
+                        fl[LI + c, j] = li[c]
+                    fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
+        fl[U1, j] = _uniform(state, j)
+        fl[U2, j] = _uniform(state, j)
+        shading += 1
+    return shading
+
+
+@kernel
+def _lit(il, sh, j):
+    """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length)."""
+    return il[NEE, j] != 0 and sh[6, j] >= 0.0
+
+
+@kernel
+def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel, work):
+    """The BSDF at each shaded path's vertex, one material at a time over the paths on it: a
+    sampled next direction (query set 1), and towards the light where the shadow ray got
+    through (query set 0: f, and for MIS the BSDF's density there)."""
+    mis = opts[STRATEGY] == MIS
+    lists = il[LIST:LIST + 5]
+    counts = il[COUNT]
+    for j in range(PACKET):
+        # a lane still to shade holds MAT >= 0 until its material's turn
+        if not il[ALIVE, j] or il[END, j]:
+            il[MAT, j] = -1
+    for first in range(PACKET):
+        m = il[MAT, first]
+        if m < 0:
+            continue
+        counts[0] = counts[1] = counts[2] = counts[3] = 0
+        for j in range(first, PACKET):
+            if il[MAT, j] != m:
+                continue
+            il[MAT, j] = -1
+            lists[0, counts[0]] = lists[1, counts[0]] = j
+            counts[0] += 1
+            if _lit(il, sh, j):
+                lists[2, counts[2]] = j
+                counts[2] += 1
+                if mis and fl[LPDF, j] < math.inf:
+                    lists[3, counts[3]] = j
+                    counts[3] += 1
+        counts[1] = counts[0]
+        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, fl[U1], fl[U2], sel,
+                   work, il[CHOSEN], lists, counts)
+
+
+@kernel
+def _bounce(opts, fl, il, state, sh, q, f):
+    """Each shaded path adds its light sample where the shadow ray got through, then turns
+    into its sampled direction (or ends: no sample, below the surface, Russian roulette)."""
+    mis = opts[STRATEGY] == MIS
+    for j in range(PACKET):
+        if not il[ALIVE, j] or il[END, j]:
+            continue
+        if _lit(il, sh, j):
+            lpdf, pick = fl[LPDF, j], fl[LPICK, j]
+            cos_l = max(q[0, 2, j], 0.0)
+            if lpdf == math.inf:
+                scale = cos_l / pick
+            else:
+                w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
+                scale = w * cos_l / (pick * lpdf)
+            for c in range(3):
+                fl[RAD + c, j] += fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
+        lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
+        if il[DEPTH_, j] == 0:
+            for c in range(3):
+                fl[AOV + c, j] = f[1, j, c] if pdf != 0.0 else 0.0
+            fl[AOV + 3, j], fl[AOV + 4, j], fl[AOV + 5, j] = fl[SX, j], fl[SY, j], fl[SZ, j]
+        if pdf == 0.0:
+            il[END, j] = 1
+            continue
         for c in range(3):
-            radiance[c] = 0.0
-        thr0, thr1, thr2 = 1.0, 1.0, 1.0
-        ox, oy, oz, dx, dy, dz = _camera_ray(cam, opts, x, y, state)
-        specular = True
-        prev_pdf = 0.0
-        for depth in range(opts[DEPTH]):
-            t, hit, a, b = closest_hit(prim, sph, planes, box, child, slots, stack, leaf_t,
-                                       ox, oy, oz, dx, dy, dz, math.inf)
-            if hit < 0:
-                if env_light >= 0 and (strategy != LIGHT or specular):
-                    w = 1.0
-                    if not specular and strategy == MIS:
-                        w = _power(prev_pdf, pmf[env_light] * env_pdf(lf, env, rows, cols,
-                                                                      env_light, dx, dy, dz))
-                    le0, le1, le2 = env_radiance(lf, env, env_light, dx, dy, dz)
-                    radiance[0] += thr0 * w * le0
-                    radiance[1] += thr1 * w * le1
-                    radiance[2] += thr2 * w * le2
-                break
-            px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-            nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,
-                                                                hit, a, b, px, py, pz)
-            light = prim[hit, 3]
-            if light >= 0 and emits_towards(lf[light], nx, ny, nz, -dx, -dy, -dz):
-                if strategy != LIGHT or specular:
-                    w = 1.0
-                    if not specular and strategy == MIS:
-                        w = _power(prev_pdf, pmf[light] * area_pdf(prim, sph, lf[light], ox, oy, oz,
-                                                                   px, py, pz, nx, ny, nz))
-                    radiance[0] += thr0 * w * lf[light, 3]
-                    radiance[1] += thr1 * w * lf[light, 4]
-                    radiance[2] += thr2 * w * lf[light, 5]
-            m = prim[hit, 2]
-            if depth + 1 >= opts[DEPTH] or m < 0:
-                break
-            # shade on the side the ray arrives from (two-sided surfaces)
-            if nx * dx + ny * dy + nz * dz > 0.0:
-                nx, ny, nz = -nx, -ny, -nz
-            if sx * nx + sy * ny + sz * nz < 0.0:
-                sx, sy, sz = -sx, -sy, -sz
-            ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
-            vx = -(dx * ax + dy * ay + dz * az)
-            vy = -(dx * bx + dy * by + dz * bz)
-            vz = -(dx * sx + dy * sy + dz * sz)
-            p = material_params(mint, params, bind, tex, texmeta, m, u, v, scratch)
-            qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
-            # next-event estimation
-            if nlights > 0:
-                l, ul = pick_light(pmf, _uniform(state))
-                u2 = _uniform(state)
-                delta_light = ltype[l] != AREA and ltype[l] != ENV
-                if strategy != BSDF or delta_light:
-                    ldx, ldy, ldz, dist, lpdf = sample_light(ltype, lf, gonio, env, rows, cols,
-                                                             prim, sph, quad, l, qx, qy, qz, ul,
-                                                             u2, li)
-                    if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
-                            and ldx * nx + ldy * ny + ldz * nz > 0.0):
-                        tmax = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
-                        if not occluded(prim, sph, planes, box, child, slots, stack, leaf_t,
-                                        qx, qy, qz, ldx, ldy, ldz, tmax):
-                            lx = ldx * ax + ldy * ay + ldz * az
-                            ly = ldx * bx + ldy * by + ldz * bz
-                            lz = ldx * sx + ldy * sy + ldz * sz
-                            bsdf_eval(mint, kinds, offs, grids, filled, m, p, vx, vy, vz, lx, ly,
-                                      lz, f)
-                            cos_l = max(lz, 0.0)
-                            if lpdf == math.inf:
-                                scale = cos_l / pmf[l]
-                            else:
-                                w = 1.0
-                                if strategy == MIS:
-                                    w = _power(pmf[l] * lpdf, bsdf_pdf(mint, kinds, offs, tables, m,
-                                                                       p, vx, vy, vz, lx, ly, lz))
-                                scale = w * cos_l / (pmf[l] * lpdf)
-                            radiance[0] += thr0 * f[0, 0] * li[0] * scale
-                            radiance[1] += thr1 * f[0, 1] * li[1] * scale
-                            radiance[2] += thr2 * f[0, 2] * li[2] * scale
-            # continue the path by sampling the BSDF
-            lx, ly, lz, pdf = bsdf_sample(mint, kinds, offs, grids, filled, tables, m, p, vx, vy,
-                                          vz, _uniform(state), _uniform(state), f)
-            if depth == 0:
-                aov[0], aov[1], aov[2] = f[0, 0], f[0, 1], f[0, 2]
-                aov[3], aov[4], aov[5] = sx, sy, sz
-                if pdf == 0.0:
-                    aov[0], aov[1], aov[2] = 0.0, 0.0, 0.0
-            if pdf == 0.0:
-                break
-            thr0 *= f[0, 0]
-            thr1 *= f[0, 1]
-            thr2 *= f[0, 2]
-            dx = lx * ax + ly * bx + lz * sx
-            dy = lx * ay + ly * by + lz * sy
-            dz = lx * az + ly * bz + lz * sz
-            if dx * nx + dy * ny + dz * nz <= 0.0:
-                break  # below the geometric surface: the shading normal would leak light
-            ox, oy, oz = qx, qy, qz
-            specular = pdf == math.inf
-            prev_pdf = pdf
-            if depth + 1 >= opts[RR]:
-                q = min(max(thr0, max(thr1, thr2)), 0.95)
-                if _uniform(state) >= q:
-                    break
-                thr0, thr1, thr2 = thr0 / q, thr1 / q, thr2 / q
+            fl[THR + c, j] *= f[1, j, c]
+        dx = lx * fl[AX, j] + ly * fl[BX, j] + lz * fl[SX, j]
+        dy = lx * fl[AY, j] + ly * fl[BY, j] + lz * fl[SY, j]
+        dz = lx * fl[AZ, j] + ly * fl[BZ, j] + lz * fl[SZ, j]
+        if dx * fl[NX, j] + dy * fl[NY, j] + dz * fl[NZ, j] <= 0.0:
+            il[END, j] = 1  # below the geometric surface: the shading normal would leak light
+            continue
+        fl[OX, j], fl[OY, j], fl[OZ, j] = fl[QX, j], fl[QY, j], fl[QZ, j]
+        fl[DX, j], fl[DY, j], fl[DZ, j] = dx, dy, dz
+        il[SPECULAR, j] = pdf == math.inf
+        fl[PREV, j] = pdf
+        il[DEPTH_, j] += 1
+        if il[DEPTH_, j] >= opts[RR]:
+            keep = min(max(fl[THR, j], max(fl[THR + 1, j], fl[THR + 2, j])), 0.95)
+            if _uniform(state, j) >= keep:
+                il[END, j] = 1
+                continue
+            for c in range(3):
+                fl[THR + c, j] /= keep
+
+
+@kernel
+def _settle(fl, il, acc, acc2, aov_acc):
+    """Add the paths that ended to their pixels' running sums and free their lanes."""
+    for j in range(PACKET):
+        if not il[ALIVE, j] or not il[END, j]:
+            continue
+        x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
         for c in range(3):
-            r = radiance[c]
+            r = fl[RAD + c, j]
             if r != r or r == math.inf:
                 r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
             acc[y, x, c] += r
             acc2[y, x, c] += r * r
         for c in range(6):
-            aov_acc[y, x, c] += aov[c]
+            aov_acc[y, x, c] += fl[AOV + c, j]
+        il[ALIVE, j] = 0
+
+
+@kernel
+def trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
+               mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
+               ltype, lf, pmf, gonio, env, rows, cols, env_light,
+               seed, x0, y0, x1, y1, s0, s1, acc, acc2, aov_acc,
+               fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li):
+    """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) into the running sums (see
+    :func:`render_pass`): for each, the radiance along its camera ray, and the first hit's
+    albedo estimate (f cos / pdf of one BSDF sample) and shading normal. The other arrays are
+    the packet's work space (zeroed: idle lanes' leftovers steer the packet's traversal, so
+    they must not depend on what the memory held)."""
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    total = npix * (s1 - s0)
+    start = 0
+    while True:
+        start, busy = _launch(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il,
+                              state)
+        if busy == 0:
+            return
+        trace_packet(prim, sph, planes, box, child, slots, stack, dist, fl, inv, il[ENTERS],
+                     fl[T], il[HIT], False)
+        if _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, params,
+                     bind, tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl,
+                     il, state, sh, q, lp, li) > 0:
+            trace_packet(prim, sph, planes, box, child, slots, stack, dist, sh, inv, il[ENTERS],
+                         sh[6], il[BLOCKER], True)
+            _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel,
+                   work)
+            _bounce(opts, fl, il, state, sh, q, f)
+        _settle(fl, il, acc, acc2, aov_acc)
 
 
 @parallel_kernel
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
     """Add samples s0 .. s1 - 1 of every pixel to the running sums: radiance into ``acc``, its
     square into ``acc2`` and the first-hit layers into ``aov_acc`` (h, w, 6). Tiles of
-    opts[TILE]^2 pixels are the parallel work items; ``trace`` runs a pixel's samples. The
-    scene's tuples are unpacked here, once (see :mod:`._intersect` on why the kernels take
-    plain arrays)."""
+    opts[TILE]^2 pixels are the parallel work items, each traced by :func:`trace_tile` in a
+    packet of paths. The scene's tuples are unpacked here, once (see :mod:`._intersect` on why
+    the kernels take plain arrays)."""
     prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
     mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
     ltype, lf, pmf, gonio, env, rows, cols, env_light = lights
     w, h, tile = opts[W], opts[H], opts[TILE]
     tx_n = (w + tile - 1) // tile
     ntiles = tx_n * ((h + tile - 1) // tile)
+    nparams = max(params.shape[0], 1)
+    nlobes = 1
+    for m in range(mint.shape[0]):
+        nlobes = max(nlobes, mint[m, K1] - mint[m, K0])
     for k in prange(ntiles):
-        state = np.empty(1, dtype=np.uint64)
-        radiance = np.empty(3)
-        aov = np.empty(6)
-        f = np.zeros((1, 3))
-        li = np.empty(3)
-        stack = np.empty(STACK, dtype=np.int64)
-        leaf_t = np.empty(LANES)
-        scratch = np.empty(max(params.shape[0], 1))
         x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
-        for y in range(y0, min(y0 + tile, h)):
-            for x in range(x0, min(x0 + tile, w)):
-                trace(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
-                      mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
-                      ltype, lf, pmf, gonio, env, rows, cols, env_light,
-                      seed, x, y, s0, s1, acc, acc2, aov_acc, state, radiance, aov, f, li,
-                      stack, leaf_t, scratch)
+        trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
+                   mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
+                   ltype, lf, pmf, gonio, env, rows, cols, env_light,
+                   seed, x0, y0, min(x0 + tile, w), min(y0 + tile, h), s0, s1, acc, acc2,
+                   aov_acc, np.zeros((FLOAT_ROWS, PACKET)), np.zeros((INT_ROWS, PACKET), np.int64),
+                   np.zeros(PACKET, np.uint64), np.zeros((7, PACKET)), np.zeros((3, PACKET)),
+                   np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, 7, PACKET)),
+                   np.zeros((2, PACKET, 3)),
+                   np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)), np.zeros((PACKET, 2)),
+                   np.zeros(3))

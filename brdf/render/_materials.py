@@ -25,9 +25,9 @@ import math
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from ..io.merl import trilinear_pair
-from ..models._kernels import material_eval, material_pdf, material_sample
+from ..models._kernels import continuous, cosine_over_pdf, mixture_batch
 from ..sampling import square_to_cosine_hemisphere
 
 MODEL, MEASURED = 0, 1
@@ -66,19 +66,14 @@ def texture_lookup(tex, meta, t, ch, u, v):
 
 
 @inline_kernel
-def material_params(mint, params, bind, tex, texmeta, m, u, v, scratch):
-    """The packed parameters of material m at surface point (u, v): the material's own, or,
-    where textures bind some of its slots, a copy in ``scratch`` with those slots replaced by
-    the textures' values there."""
-    p = params[mint[m, P0]:mint[m, P1]]
-    if mint[m, B0] == mint[m, B1]:
-        return p
-    q = scratch[:p.shape[0]]
-    for j in range(p.shape[0]):  # a slice assignment may allocate, which kernels cannot
-        q[j] = p[j]
+def material_params(mint, params, bind, tex, texmeta, m, u, v, row):
+    """Write the packed parameters of material m at surface point (u, v) into ``row``: the
+    material's own, with the slots that textures bind replaced by the textures' values there."""
+    p0 = mint[m, P0]
+    for j in range(mint[m, P1] - p0):  # a slice assignment may allocate, which kernels cannot
+        row[j] = params[p0 + j]
     for j in range(mint[m, B0], mint[m, B1]):
-        q[bind[j, 1]] = texture_lookup(tex, texmeta, bind[j, 2], bind[j, 3], u, v)
-    return q
+        row[bind[j, 1]] = texture_lookup(tex, texmeta, bind[j, 2], bind[j, 3], u, v)
 
 
 # --- measured tables: tabulated importance sampling --------------------------------------------
@@ -140,55 +135,62 @@ def _measured_pdf(cdf, vx, vy, vz, lx, ly, lz):
 
 
 # --- the material interface of the integrator -------------------------------------------------
-
-@inline_kernel
-def bsdf_eval(mint, kinds, offs, grids, filled, m, p, vx, vy, vz, lx, ly, lz, out):
-    """f(wi = l, wo = v) into ``out[0, :3]`` (zeroed first)."""
-    for c in range(3):
-        out[0, c] = 0.0
-    if mint[m, TYPE] == MEASURED:
-        if lz > 0.0 and vz > 0.0:
-            g = mint[m, GRID]
-            trilinear_pair(grids[g], filled[g], lx, ly, lz, vx, vy, vz, out, 0)
-        return
-    material_eval(kinds[mint[m, K0]:mint[m, K1]], offs[mint[m, O0]:mint[m, O1]], p, 3,
-                  lx, ly, lz, vx, vy, vz, out, 0)
+#
+# The integrator shades its paths in batches, the paths on one material at a time: item j reads
+# its packed parameters from the row ``lp[j]`` (the material's, or a texel's where textures bind
+# them; see :func:`material_params`) and its directions from query sets ``q[s] (7, n)``, in the
+# local shading frame: v towards the viewer (rows 3-5), l towards the light (rows 0-2) and a
+# density (row 6). f is evaluated as f(wi = l, wo = v), and l is drawn given v.
 
 
 @inline_kernel
-def bsdf_pdf(mint, kinds, offs, tables, m, p, vx, vy, vz, lx, ly, lz):
-    """Solid-angle density with which :func:`bsdf_sample` draws l given v."""
-    if mint[m, TYPE] == MEASURED:
-        return _measured_pdf(tables[mint[m, GRID]], vx, vy, vz, lx, ly, lz)
-    return material_pdf(kinds[mint[m, K0]:mint[m, K1]], offs[mint[m, O0]:mint[m, O1]], p, 3,
-                        vx, vy, vz, lx, ly, lz)
-
-
-@inline_kernel
-def bsdf_sample(mint, kinds, offs, grids, filled, tables, m, p, vx, vy, vz, u1, u2, weight):
-    """Draw l given v: returns ``(lx, ly, lz, pdf)`` and writes f(l, v) cos(theta_l) / pdf into
-    ``weight[0, :3]``; pdf is inf for a delta lobe, 0 for no sample."""
-    if mint[m, TYPE] == MEASURED:
-        cdf = tables[mint[m, GRID]]
-        if u1 < DEFENSIVE:
-            lx, ly, lz = square_to_cosine_hemisphere(u1 / DEFENSIVE, u2)
+def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
+    """The passes of :func:`brdf.models._kernels.mixture_batch` for a measured table: f by
+    trilinear lookup, l drawn by the tabulated distribution mixed with cosine sampling."""
+    d = q[1]
+    for t in range(counts[1]):
+        j = lists[1, t]
+        a, b = u1[j], u2[j]
+        if a < DEFENSIVE:
+            x, y, z = square_to_cosine_hemisphere(a / DEFENSIVE, b)
         else:
-            lx, ly, lz = _tab_sample(cdf, vx, vy, vz, (u1 - DEFENSIVE) / (1.0 - DEFENSIVE), u2)
-        pdf = _measured_pdf(cdf, vx, vy, vz, lx, ly, lz)
-        if pdf <= 0.0:
-            return lx, ly, lz, 0.0
-        bsdf_eval(mint, kinds, offs, grids, filled, m, p, vx, vy, vz, lx, ly, lz, weight)
+            x, y, z = _tab_sample(cdf, d[3, j], d[4, j], d[5, j],
+                                  (a - DEFENSIVE) / (1.0 - DEFENSIVE), b)
+        d[0, j], d[1, j], d[2, j] = x, y, z
+        d[6, j] = _measured_pdf(cdf, d[3, j], d[4, j], d[5, j], x, y, z)
         for c in range(3):
-            weight[0, c] *= lz / pdf
-        return lx, ly, lz, pdf
-    lx, ly, lz, pdf = material_sample(kinds[mint[m, K0]:mint[m, K1]],
-                                      offs[mint[m, O0]:mint[m, O1]], p, 3, vx, vy, vz, u1, u2,
-                                      weight, 0)
-    if (mint[m, FLAGS] & NONRECIPROCAL) and pdf > 0.0 and pdf < math.inf:
-        bsdf_eval(mint, kinds, offs, grids, filled, m, p, vx, vy, vz, lx, ly, lz, weight)
-        for c in range(3):
-            weight[0, c] *= lz / pdf
-    return lx, ly, lz, pdf
+            f[1, j, c] = 0.0
+    sampled = continuous(lists[1], counts[1], d[6], lists[4])
+    for t in range(counts[3]):
+        j = lists[3, t]
+        q[0, 6, j] = _measured_pdf(cdf, q[0, 3, j], q[0, 4, j], q[0, 5, j], q[0, 0, j],
+                                   q[0, 1, j], q[0, 2, j])
+    for s in range(2):
+        ev, nev = (lists[2], counts[2]) if s == 0 else (lists[4], sampled)
+        for t in range(nev):
+            j = ev[t]
+            for c in range(3):
+                f[s, j, c] = 0.0
+            if q[s, 2, j] > 0.0 and q[s, 5, j] > 0.0:
+                trilinear_pair(grid, filled, q[s, 0, j], q[s, 1, j], q[s, 2, j], q[s, 3, j],
+                               q[s, 4, j], q[s, 5, j], f[s], j)
+    cosine_over_pdf(lists[4], sampled, d[2], d[6], f[1])
+
+
+@inline_kernel
+def bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, u1, u2, sel, work,
+               chosen, lists, counts):
+    """Shade a batch of paths on material m (see
+    :func:`brdf.models._kernels.mixture_batch` for the query sets and lists): draw l given v
+    at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[1]``; f(l, v) at
+    ``lists[2]`` and the density of l at ``lists[3]`` in set 0. ``lists[0]`` repeats
+    ``lists[1]``, and ``lists[4]`` is work space."""
+    if mint[m, TYPE] == MEASURED:
+        g = mint[m, GRID]
+        _measured_batch(grids[g], filled[g], tables[g], q, f, u1, u2, lists, counts)
+        return
+    mixture_batch(kinds[mint[m, K0]:mint[m, K1]], offs[mint[m, O0]:mint[m, O1]], lp, 1, 3, q, f,
+                  u1, u2, sel, work, chosen, lists, counts, False)
 
 
 def tabulate(table):
@@ -216,25 +218,65 @@ def tabulate(table):
     return cdf
 
 
+#: Directions per batch of the array drivers below.
+BATCH = 256
+
+
+@allocating_kernel
+def _driver_space(mats, m, v, k0, count, lists, counts):
+    """Work space of :func:`bsdf_shade` for the directions v[k0:k0 + count] on material m: query
+    sets with v in rows 3-5, values, the uniform pair, parameter rows, selection, work and
+    chosen; the lists get the items in order."""
+    mint, params = mats[0], mats[3]
+    p = params[mint[m, P0]:mint[m, P1]]
+    q, f, u = np.zeros((2, 7, BATCH)), np.zeros((2, BATCH, 3)), np.zeros((2, BATCH))
+    lp = np.zeros((BATCH, max(p.shape[0], 1)))
+    for t in range(count):
+        for a in range(3):
+            q[0, 3 + a, t] = q[1, 3 + a, t] = v[k0 + t, a]
+        lp[t, :p.shape[0]] = p
+        for k in range(4):
+            lists[k, t] = t
+    return (q, f, u, lp, np.zeros((BATCH, max(mint[m, K1] - mint[m, K0], 1))),
+            np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64))
+
+
 @parallel_kernel
 def sample_array(mats, m, v, u, l, pdf, weight):
-    """Array driver of :func:`bsdf_sample` for material m (tests, plots): l, pdf, weight for
-    each view direction v[k] and uniform pair u[k]."""
+    """Array driver of :func:`bsdf_shade`'s draw for material m (tests, plots): l, pdf, weight
+    for each view direction v[k] and uniform pair u[k]."""
     mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
-    p = params[mint[m, P0]:mint[m, P1]]
-    for k in prange(v.shape[0]):
-        w = np.zeros((1, 3))
-        lx, ly, lz, pk = bsdf_sample(mint, kinds, offs, grids, filled, tables, m, p,
-                                     v[k, 0], v[k, 1], v[k, 2], u[k, 0], u[k, 1], w)
-        l[k, 0], l[k, 1], l[k, 2], pdf[k] = lx, ly, lz, pk
-        weight[k, 0], weight[k, 1], weight[k, 2] = w[0, 0], w[0, 1], w[0, 2]
+    n = v.shape[0]
+    for b in prange((n + BATCH - 1) // BATCH):
+        k0 = b * BATCH
+        c = min(BATCH, n - k0)
+        lists, counts = np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64)
+        q, f, uu, lp, sel, work, chosen = _driver_space(mats, m, v, k0, c, lists, counts)
+        for t in range(c):
+            uu[0, t], uu[1, t] = u[k0 + t, 0], u[k0 + t, 1]
+        counts[0] = counts[1] = c
+        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
+                   chosen, lists, counts)
+        for t in range(c):
+            l[k0 + t, 0], l[k0 + t, 1], l[k0 + t, 2] = q[1, 0, t], q[1, 1, t], q[1, 2, t]
+            pdf[k0 + t] = q[1, 6, t]
+            for a in range(3):
+                weight[k0 + t, a] = f[1, t, a]
 
 
 @parallel_kernel
 def pdf_array(mats, m, v, l, pdf):
-    """Array driver of :func:`bsdf_pdf` for material m."""
+    """Array driver of :func:`bsdf_shade`'s density for material m."""
     mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
-    p = params[mint[m, P0]:mint[m, P1]]
-    for k in prange(v.shape[0]):
-        pdf[k] = bsdf_pdf(mint, kinds, offs, tables, m, p, v[k, 0], v[k, 1], v[k, 2],
-                          l[k, 0], l[k, 1], l[k, 2])
+    n = v.shape[0]
+    for b in prange((n + BATCH - 1) // BATCH):
+        k0 = b * BATCH
+        c = min(BATCH, n - k0)
+        lists, counts = np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64)
+        q, f, uu, lp, sel, work, chosen = _driver_space(mats, m, v, k0, c, lists, counts)
+        for t in range(c):
+            q[0, 0, t], q[0, 1, t], q[0, 2, t] = l[k0 + t, 0], l[k0 + t, 1], l[k0 + t, 2]
+        counts[0] = counts[3] = c
+        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
+                   chosen, lists, counts)
+        pdf[k0:k0 + c] = q[0, 6, :c]

@@ -126,7 +126,24 @@ def _reference_hit(shapes, o, d):
     return best
 
 
-def test_closest_hits_through_the_tree_are_those_of_every_primitive():
+def _trace(geo, o, d, tmax, any_hit):
+    """One packet through the tree: rays (PACKET, 3) from o along d, lanes with tmax < 0 idle;
+    returns the rows (t, slot) trace_packet leaves."""
+    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
+    ray = np.ascontiguousarray(np.concatenate([o, d], axis=1).T)
+    t = np.array(tmax, dtype=float)
+    hit = np.empty(X.PACKET, dtype=np.int64)
+    X.trace_packet(prim, sph, planes, box, child, slots, np.empty(2 * X.STACK, dtype=np.int64),
+                   np.empty(X.LANES), ray, np.empty((3, X.PACKET)),
+                   np.empty(X.PACKET, dtype=np.int64), t, hit, any_hit)
+    return t, hit
+
+
+@pytest.mark.parametrize("spread", [0.02, 2.0])
+def test_packets_find_the_hits_of_every_primitive(spread):
+    """Packets of nearly parallel rays (traversed as packets) and of scattered ones (which part
+    ways and go on alone), idle lanes among them: nearest hits, the hit's coordinates, and any
+    hit within the nearest one's distance or just short of it, against plain numpy."""
     rng = np.random.default_rng(3)
     m = 300
     centres = rng.uniform(-1, 1, (m, 3))
@@ -136,35 +153,37 @@ def test_closest_hits_through_the_tree_are_those_of_every_primitive():
               render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))]
     geo = render.Scene(shapes=shapes).compile().geo
     prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
-    stack = np.empty(X.STACK, dtype=np.int64)
-    dist = np.empty(X.LANES)
     hits = 0
-    for _ in range(400):
-        o = rng.uniform(-3, 3, 3)
-        d = rng.uniform(-1, 1, 3) - o               # towards the soup, most rays hit
-        d /= np.linalg.norm(d)
-        t, i, a, b = X.closest_hit(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
-                                   math.inf)
-        want_t, shape, face = _reference_hit(shapes, o, d)
-        assert X.occluded(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
-                          math.inf) == (shape >= 0)
-        if shape < 0:
-            assert i == -1
-            continue
-        hits += 1
-        kinds = (X.TRIANGLE, X.SPHERE, X.QUAD)
-        assert prim[i, 0] == kinds[shape] and (shape != 0 or prim[i, 1] == face)
-        assert t == pytest.approx(want_t, rel=1e-12)
-        # the hit's (a, b) are the triangle's barycentrics, or the rectangle's coordinates
-        hit = o + t * d
-        if shape == 0:
-            v = vertices[3 * face:3 * face + 3]
-            np.testing.assert_allclose(v[0] + a * (v[1] - v[0]) + b * (v[2] - v[0]), hit,
-                                       atol=1e-12)
-        elif shape == 2:
-            np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
-                                       + b * quad[prim[i, 1], 2], hit, atol=1e-12)
-        # nothing before the hit, something just past it
-        assert not X.occluded(prim, sph, planes, box, child, slots, stack, dist, *o, *d,
-                              t * (1 - 1e-9))
-    assert hits > 200
+    for _ in range(8):
+        o = rng.uniform(-3, 3, 3) + spread * rng.standard_normal((X.PACKET, 3))
+        # towards points of the soup, most rays hit
+        d = np.clip(rng.uniform(-1, 1, 3) + spread * rng.standard_normal((X.PACKET, 3)), -1, 1) - o
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        idle = rng.random(X.PACKET) < 0.1
+        t, slot = _trace(geo, o, d, np.where(idle, -1.0, math.inf), False)
+        want = [_reference_hit(shapes, o[j], d[j]) for j in range(X.PACKET)]
+        seen = np.array([w[1] >= 0 and not idle[j] for j, w in enumerate(want)])
+        np.testing.assert_array_equal(slot >= 0, seen)
+        _, blocked = _trace(geo, o, d, np.where(idle, -1.0, math.inf), True)
+        np.testing.assert_array_equal(blocked >= 0, seen)
+        short = np.where(seen, t * (1 - 1e-9), -1.0)
+        _, blocked = _trace(geo, o, d, short, True)
+        assert not (blocked >= 0).any()                 # nothing before the nearest hit
+        for j in np.flatnonzero(seen):
+            want_t, shape, face = want[j]
+            i = slots[slot[j]]
+            hits += 1
+            kinds = (X.TRIANGLE, X.SPHERE, X.QUAD)
+            assert prim[i, 0] == kinds[shape] and (shape != 0 or prim[i, 1] == face)
+            assert t[j] == pytest.approx(want_t, rel=1e-12)
+            # the hit's (a, b) are the triangle's barycentrics, or the rectangle's coordinates
+            a, b = X.plane_coordinates(planes, slot[j], *o[j], *d[j], t[j])
+            hit = o[j] + t[j] * d[j]
+            if shape == 0:
+                v = vertices[3 * face:3 * face + 3]
+                np.testing.assert_allclose(v[0] + a * (v[1] - v[0]) + b * (v[2] - v[0]), hit,
+                                           atol=1e-12)
+            elif shape == 2:
+                np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
+                                           + b * quad[prim[i, 1], 2], hit, atol=1e-12)
+    assert hits > 150
