@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from .. import sampling
 from ._intersect import LANES, PACKET, QUAD, SPHERE, STACK, plane_coordinates, trace_packet
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
@@ -136,16 +136,18 @@ def _power(a, b):
 
 #: rows of ``fl``: the ray, its hit distance, throughput, radiance, the density of the last
 #: bounce; the vertex's geometric and shading normals, tangent and bitangent, the ray origin
-#: off the surface; the light sample's radiance, density and light probability, the BSDF
-#: sample's uniform pair, and the first-hit layers
+#: off the surface; the light sample's radiance, density and light probability, the vertex's
+#: uniform numbers (see :func:`_draw`), and the first-hit layers
 (OX, OY, OZ, DX, DY, DZ, T, THR, RAD, PREV, NX, NY, NZ, SX, SY, SZ, AX, AY, AZ, BX, BY, BZ,
- QX, QY, QZ, LI, LPDF, LPICK, U1, U2, AOV) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17,
-                                              18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29,
-                                              32, 33, 34, 35, 36)
+ QX, QY, QZ, LI, LPDF, LPICK, U, AOV) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17, 18, 19,
+                                         20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 32, 33, 34, 39)
+#: the vertex's uniform numbers, in rows U + k: the light, a point on it, the BSDF sample's pair,
+#: Russian roulette
+PICK, ON_LIGHT, BSDF_U1, BSDF_U2, ROULETTE = range(5)
 FLOAT_ROWS = AOV + 6
 #: rows of ``il``: the path is in flight, its pixel, depth (segments traced), whether the last
-#: bounce was specular, the slot its ray hit, its material, whether it casts a shadow ray,
-#: what that ray hit, whether the path ends at this vertex, work space of the tracing (whether
+#: bounce was specular, the slot its ray hit, its material, the lane of ``sh`` that holds its
+#: shadow ray (-1: none), what the shadow ray in each lane of ``sh`` hit, whether the path ends at this vertex, work space of the tracing (whether
 #: a ray enters a node) and of the shading (the lobe each path sampled, the lengths of the lists
 #: of lanes, five lists)
 (ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
@@ -167,26 +169,51 @@ def _camera_ray(cam, opts, x, y, state, j):
 
 
 @kernel
-def _launch(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state):
-    """Give every idle lane the tile's next (pixel, sample) pair, from pair ``start`` of
-    ``total`` (pixel-major within a sample, so a packet's camera rays are neighbours); return
-    the next pair and the number of paths in flight."""
+def _draw(fl, state):
+    """Every lane's five numbers for its next vertex (rows U to U + 4), drawn from its stream in
+    one pass that runs in SIMD lanes. A path that ends at the vertex leaves some unused; the
+    next path in its lane starts a stream of its own."""
+    for k in range(5):
+        for j in range(PACKET):
+            fl[U + k, j] = _uniform(state, j)
+
+
+@kernel
+def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
+    """Start the path of (pixel, sample) in lane j: its stream and camera ray."""
+    state[j] = _stream(seed, y * opts[W] + x, sample)
+    fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j] = _camera_ray(cam, opts, x,
+                                                                                   y, state, j)
+    for c in range(3):
+        fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
+    for c in range(6):
+        fl[AOV + c, j] = 0.0
+    fl[PREV, j] = 0.0
+    il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
+    il[SPECULAR, j], il[END, j] = 1, 0
+
+
+@kernel
+def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state, sh, q, f, acc,
+             acc2, aov_acc):
+    """Move every lane on: a shaded path adds its light sample where the shadow ray got through
+    and turns into its sampled direction (or ends: no sample, below the surface, Russian
+    roulette); a path that ended goes into its pixel's running sums, and its lane takes the
+    tile's next (pixel, sample) pair, from pair ``start`` of ``total`` (pixel-major within a
+    sample, so a packet's camera rays are neighbours). Returns the next pair and the number of
+    paths in flight."""
+    mis = opts[STRATEGY] == MIS
     busy = 0
     for j in range(PACKET):
+        if il[ALIVE, j] and not il[END, j]:
+            _bounce(opts, mis, fl, il, sh, q, f, j)
+        if il[ALIVE, j] and il[END, j]:
+            _settle(fl, il, acc, acc2, aov_acc, j)
         if not il[ALIVE, j] and start < total:
             k = start % npix
-            x, y = x0 + k % tw, y0 + k // tw
+            _launch(cam, opts, seed, x0 + k % tw, y0 + k // tw, s0 + start // npix, fl, il,
+                    state, j)
             start += 1
-            state[j] = _stream(seed, y * opts[W] + x, s0 + (start - 1) // npix)
-            fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j] = _camera_ray(
-                cam, opts, x, y, state, j)
-            for c in range(3):
-                fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
-            for c in range(6):
-                fl[AOV + c, j] = 0.0
-            fl[PREV, j] = 0.0
-            il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
-            il[SPECULAR, j] = 1
         fl[T, j] = math.inf if il[ALIVE, j] else -1.0
         busy += il[ALIVE, j]
     return start, busy
@@ -194,18 +221,18 @@ def _launch(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state):
 
 @kernel
 def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, params, bind,
-              tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl, il, state,
-              sh, q, lp, li):
+              tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl, il, sh, q, lp,
+              li):
     """Each path at the vertex its ray found: emission seen there (or the environment on a
-    miss), the end of the path or its shading frame, parameters and next-event sample (the
-    shadow ray in ``sh``, idle with length -1 when there is none), and the pair of numbers its
-    BSDF sample will use. Returns the number of paths to shade."""
+    miss), the end of the path or its shading frame, parameters and next-event sample. The
+    shadow rays fill the first lanes of ``sh``, so that tracing them skips the paths that cast
+    none. Returns the numbers of paths to shade and of shadow rays."""
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
-    shading = 0
+    shading = shadows = 0
     for j in range(PACKET):
-        il[NEE, j], il[END, j] = 0, 0
-        sh[6, j] = -1.0
+        il[NEE, j], il[END, j] = -1, 0
+        sh[6, j] = -1.0  # idle (slots below j are taken or idle already)
         if not il[ALIVE, j]:
             continue
         specular = il[SPECULAR, j] != 0
@@ -262,33 +289,32 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
         fl[QX, j], fl[QY, j], fl[QZ, j] = qx, qy, qz
         # next-event estimation: a light, a point or direction on it, and its shadow ray
         if nlights > 0:
-            l, ul = pick_light(pmf, _uniform(state, j))
-            u2 = _uniform(state, j)
+            l, ul = pick_light(pmf, fl[U + PICK, j])
+            u2 = fl[U + ON_LIGHT, j]
             if strategy != BSDF or (ltype[l] != AREA and ltype[l] != ENV):
                 ldx, ldy, ldz, dist, lpdf = sample_light(ltype, lf, gonio, env, rows, cols, prim,
                                                          sph, quad, l, qx, qy, qz, ul, u2, li)
                 if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
                         and ldx * nx + ldy * ny + ldz * nz > 0.0):
-                    il[NEE, j] = 1
-                    sh[0, j], sh[1, j], sh[2, j], sh[3, j], sh[4, j], sh[5, j] = (qx, qy, qz, ldx,
+                    k = il[NEE, j] = shadows
+                    shadows += 1
+                    sh[0, k], sh[1, k], sh[2, k], sh[3, k], sh[4, k], sh[5, k] = (qx, qy, qz, ldx,
                                                                                    ldy, ldz)
-                    sh[6, j] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+                    sh[6, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
                     q[0, 0, j] = ldx * ax + ldy * ay + ldz * az
                     q[0, 1, j] = ldx * bx + ldy * by + ldz * bz
                     q[0, 2, j] = ldx * sx + ldy * sy + ldz * sz
                     for c in range(3):
                         fl[LI + c, j] = li[c]
                     fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
-        fl[U1, j] = _uniform(state, j)
-        fl[U2, j] = _uniform(state, j)
         shading += 1
-    return shading
+    return shading, shadows
 
 
 @kernel
 def _lit(il, sh, j):
     """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length)."""
-    return il[NEE, j] != 0 and sh[6, j] >= 0.0
+    return il[NEE, j] >= 0 and sh[6, il[NEE, j]] >= 0.0
 
 
 @kernel
@@ -321,74 +347,68 @@ def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f,
                     lists[3, counts[3]] = j
                     counts[3] += 1
         counts[1] = counts[0]
-        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, fl[U1], fl[U2], sel,
-                   work, il[CHOSEN], lists, counts)
+        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, fl[U + BSDF_U1],
+                   fl[U + BSDF_U2], sel, work, il[CHOSEN], lists, counts)
 
 
-@kernel
-def _bounce(opts, fl, il, state, sh, q, f):
-    """Each shaded path adds its light sample where the shadow ray got through, then turns
-    into its sampled direction (or ends: no sample, below the surface, Russian roulette)."""
-    mis = opts[STRATEGY] == MIS
-    for j in range(PACKET):
-        if not il[ALIVE, j] or il[END, j]:
-            continue
-        if _lit(il, sh, j):
-            lpdf, pick = fl[LPDF, j], fl[LPICK, j]
-            cos_l = max(q[0, 2, j], 0.0)
-            if lpdf == math.inf:
-                scale = cos_l / pick
-            else:
-                w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
-                scale = w * cos_l / (pick * lpdf)
-            for c in range(3):
-                fl[RAD + c, j] += fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
-        lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
-        if il[DEPTH_, j] == 0:
-            for c in range(3):
-                fl[AOV + c, j] = f[1, j, c] if pdf != 0.0 else 0.0
-            fl[AOV + 3, j], fl[AOV + 4, j], fl[AOV + 5, j] = fl[SX, j], fl[SY, j], fl[SZ, j]
-        if pdf == 0.0:
+@inline_kernel
+def _bounce(opts, mis, fl, il, sh, q, f, j):
+    """Path j adds its light sample where the shadow ray got through, then turns into its
+    sampled direction, or ends (END) where there is none, below the surface, or by Russian
+    roulette."""
+    if _lit(il, sh, j):
+        lpdf, pick = fl[LPDF, j], fl[LPICK, j]
+        cos_l = max(q[0, 2, j], 0.0)
+        if lpdf == math.inf:
+            scale = cos_l / pick
+        else:
+            w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
+            scale = w * cos_l / (pick * lpdf)
+        for c in range(3):
+            fl[RAD + c, j] += fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
+    lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
+    if il[DEPTH_, j] == 0:
+        for c in range(3):
+            fl[AOV + c, j] = f[1, j, c] if pdf != 0.0 else 0.0
+        fl[AOV + 3, j], fl[AOV + 4, j], fl[AOV + 5, j] = fl[SX, j], fl[SY, j], fl[SZ, j]
+    if pdf == 0.0:
+        il[END, j] = 1
+        return
+    for c in range(3):
+        fl[THR + c, j] *= f[1, j, c]
+    dx = lx * fl[AX, j] + ly * fl[BX, j] + lz * fl[SX, j]
+    dy = lx * fl[AY, j] + ly * fl[BY, j] + lz * fl[SY, j]
+    dz = lx * fl[AZ, j] + ly * fl[BZ, j] + lz * fl[SZ, j]
+    if dx * fl[NX, j] + dy * fl[NY, j] + dz * fl[NZ, j] <= 0.0:
+        il[END, j] = 1  # below the geometric surface: the shading normal would leak light
+        return
+    fl[OX, j], fl[OY, j], fl[OZ, j] = fl[QX, j], fl[QY, j], fl[QZ, j]
+    fl[DX, j], fl[DY, j], fl[DZ, j] = dx, dy, dz
+    il[SPECULAR, j] = pdf == math.inf
+    fl[PREV, j] = pdf
+    il[DEPTH_, j] += 1
+    if il[DEPTH_, j] >= opts[RR]:
+        keep = min(max(fl[THR, j], max(fl[THR + 1, j], fl[THR + 2, j])), 0.95)
+        if fl[U + ROULETTE, j] >= keep:
             il[END, j] = 1
-            continue
+            return
         for c in range(3):
-            fl[THR + c, j] *= f[1, j, c]
-        dx = lx * fl[AX, j] + ly * fl[BX, j] + lz * fl[SX, j]
-        dy = lx * fl[AY, j] + ly * fl[BY, j] + lz * fl[SY, j]
-        dz = lx * fl[AZ, j] + ly * fl[BZ, j] + lz * fl[SZ, j]
-        if dx * fl[NX, j] + dy * fl[NY, j] + dz * fl[NZ, j] <= 0.0:
-            il[END, j] = 1  # below the geometric surface: the shading normal would leak light
-            continue
-        fl[OX, j], fl[OY, j], fl[OZ, j] = fl[QX, j], fl[QY, j], fl[QZ, j]
-        fl[DX, j], fl[DY, j], fl[DZ, j] = dx, dy, dz
-        il[SPECULAR, j] = pdf == math.inf
-        fl[PREV, j] = pdf
-        il[DEPTH_, j] += 1
-        if il[DEPTH_, j] >= opts[RR]:
-            keep = min(max(fl[THR, j], max(fl[THR + 1, j], fl[THR + 2, j])), 0.95)
-            if _uniform(state, j) >= keep:
-                il[END, j] = 1
-                continue
-            for c in range(3):
-                fl[THR + c, j] /= keep
+            fl[THR + c, j] /= keep
 
 
-@kernel
-def _settle(fl, il, acc, acc2, aov_acc):
-    """Add the paths that ended to their pixels' running sums and free their lanes."""
-    for j in range(PACKET):
-        if not il[ALIVE, j] or not il[END, j]:
-            continue
-        x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
-        for c in range(3):
-            r = fl[RAD + c, j]
-            if r != r or r == math.inf:
-                r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
-            acc[y, x, c] += r
-            acc2[y, x, c] += r * r
-        for c in range(6):
-            aov_acc[y, x, c] += fl[AOV + c, j]
-        il[ALIVE, j] = 0
+@inline_kernel
+def _settle(fl, il, acc, acc2, aov_acc, j):
+    """Add the ended path j to its pixel's running sums and free its lane."""
+    x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
+    for c in range(3):
+        r = fl[RAD + c, j]
+        if r != r or r == math.inf:
+            r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
+        acc[y, x, c] += r
+        acc2[y, x, c] += r * r
+    for c in range(6):
+        aov_acc[y, x, c] += fl[AOV + c, j]
+    il[ALIVE, j] = 0
 
 
 @kernel
@@ -400,27 +420,39 @@ def trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots
     """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) into the running sums (see
     :func:`render_pass`): for each, the radiance along its camera ray, and the first hit's
     albedo estimate (f cos / pdf of one BSDF sample) and shading normal. The other arrays are
-    the packet's work space (zeroed: idle lanes' leftovers steer the packet's traversal, so
-    they must not depend on what the memory held)."""
+    the packet's work space (:func:`_packet_space`)."""
     tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     total = npix * (s1 - s0)
     start = 0
     while True:
-        start, busy = _launch(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il,
-                              state)
+        start, busy = _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il,
+                               state, sh, q, f, acc, acc2, aov_acc)
         if busy == 0:
             return
         trace_packet(prim, sph, planes, box, child, slots, stack, dist, fl, inv, il[ENTERS],
-                     fl[T], il[HIT], False)
-        if _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, params,
-                     bind, tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl,
-                     il, state, sh, q, lp, li) > 0:
+                     fl[T], il[HIT], False, PACKET)
+        _draw(fl, state)
+        shading, shadows = _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots,
+                                     mint, params, bind, tex, texmeta, ltype, lf, pmf, gonio, env,
+                                     rows, cols, env_light, fl, il, sh, q, lp, li)
+        if shadows > 0:
+            # whole SIMD registers of lanes (eight numbers: AVX-512)
             trace_packet(prim, sph, planes, box, child, slots, stack, dist, sh, inv, il[ENTERS],
-                         sh[6], il[BLOCKER], True)
+                         sh[6], il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
+        if shading > 0:
             _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel,
                    work)
-            _bounce(opts, fl, il, state, sh, q, f)
-        _settle(fl, il, acc, acc2, aov_acc)
+
+
+@allocating_kernel
+def _packet_space(nparams, nlobes):
+    """A packet's work arrays (zeroed: idle lanes' leftovers steer the packet's traversal, so
+    they must not depend on what the memory held): see :func:`trace_tile`."""
+    return (np.zeros((FLOAT_ROWS, PACKET)), np.zeros((INT_ROWS, PACKET), np.int64),
+            np.zeros(PACKET, np.uint64), np.zeros((7, PACKET)), np.zeros((3, PACKET)),
+            np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, 7, PACKET)),
+            np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)),
+            np.zeros((PACKET, 2)), np.zeros(3))
 
 
 @parallel_kernel
@@ -442,13 +474,10 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
         nlobes = max(nlobes, mint[m, K1] - mint[m, K0])
     for k in prange(ntiles):
         x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
+        fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li = _packet_space(nparams,
+                                                                                     nlobes)
         trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
                    mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
                    ltype, lf, pmf, gonio, env, rows, cols, env_light,
                    seed, x0, y0, min(x0 + tile, w), min(y0 + tile, h), s0, s1, acc, acc2,
-                   aov_acc, np.zeros((FLOAT_ROWS, PACKET)), np.zeros((INT_ROWS, PACKET), np.int64),
-                   np.zeros(PACKET, np.uint64), np.zeros((7, PACKET)), np.zeros((3, PACKET)),
-                   np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, 7, PACKET)),
-                   np.zeros((2, PACKET, 3)),
-                   np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)), np.zeros((PACKET, 2)),
-                   np.zeros(3))
+                   aov_acc, fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li)

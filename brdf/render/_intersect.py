@@ -198,13 +198,14 @@ ALONE = 8
 
 
 @kernel
-def _packet_enters(box, nd, ray, inv, tmax, enters):
-    """How many lanes' rays enter box ``nd`` within (0, tmax[j]), each lane's verdict (0 or 1)
-    in ``enters`` (the slab test of :func:`_box_entry`). Idle lanes (tmax < 0) never enter."""
+def _packet_enters(box, nd, ray, inv, tmax, enters, n):
+    """How many of the first n lanes' rays enter box ``nd`` within (0, tmax[j]), each lane's
+    verdict (0 or 1) in ``enters`` (the slab test of :func:`_box_entry`). Idle lanes (tmax < 0)
+    never enter."""
     lox, loy, loz = box[nd, 0, 0], box[nd, 0, 1], box[nd, 0, 2]
     hix, hiy, hiz = box[nd, 1, 0], box[nd, 1, 1], box[nd, 1, 2]
     count = 0
-    for j in range(PACKET):
+    for j in range(n):
         t0x, t1x = (lox - ray[0, j]) * inv[0, j], (hix - ray[0, j]) * inv[0, j]
         t0y, t1y = (loy - ray[1, j]) * inv[1, j], (hiy - ray[1, j]) * inv[1, j]
         t0z, t1z = (loz - ray[2, j]) * inv[2, j], (hiz - ray[2, j]) * inv[2, j]
@@ -216,9 +217,9 @@ def _packet_enters(box, nd, ray, inv, tmax, enters):
 
 
 @kernel
-def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit):
-    """Test the primitive in ``slot`` against every lane: where it lies within (0, tmax[j]),
-    tmax[j] becomes its distance and hit[j] the slot.
+def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
+    """Test the primitive in ``slot`` against the first n lanes: where it lies within
+    (0, tmax[j]), tmax[j] becomes its distance and hit[j] the slot.
 
     Planar primitives share one formula, x = p + a e1 + b e2 with a, b >= 0 and max(a, b) <= 1
     (parallelogram) or a + b <= 1 (triangle: Moller and Trumbore's barycentrics): the plane,
@@ -227,7 +228,7 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit):
     b, s = slot // LANES, slot % LANES
     if planes[b, PSPH, s] != 0.0:
         c = sph[prim[slots[slot], 1]]
-        for j in range(PACKET):
+        for j in range(n):
             t = hit_sphere(c, ray[0, j], ray[1, j], ray[2, j], ray[3, j], ray[4, j], ray[5, j],
                            tmax[j])
             if t > 0.0:
@@ -238,7 +239,7 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit):
     ax, ay, az = planes[b, PQ1, s], planes[b, PQ1 + 1, s], planes[b, PQ1 + 2, s]
     bx, by, bz = planes[b, PQ2, s], planes[b, PQ2 + 1, s], planes[b, PQ2 + 2, s]
     tri = planes[b, PTRI, s]
-    for j in range(PACKET):
+    for j in range(n):
         px, py, pz = cx - ray[0, j], cy - ray[1, j], cz - ray[2, j]
         t = (px * nx + py * ny + pz * nz) / (ray[3, j] * nx + ray[4, j] * ny + ray[5, j] * nz)
         hx, hy, hz = t * ray[3, j] - px, t * ray[4, j] - py, t * ray[5, j] - pz
@@ -252,9 +253,9 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit):
 
 @kernel
 def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, enters, tmax, hit,
-                 any_hit):
-    """Trace the packet's rays (``ray`` rows 0-5: origins and unit directions, a lane each)
-    through the tree.
+                 any_hit, n):
+    """Trace the rays of the packet's first n lanes (``ray`` rows 0-5: origins and unit
+    directions, a lane each) through the tree.
 
     Closest hits: ``tmax[j]`` becomes the distance of lane j's nearest hit in (0, tmax[j]) and
     ``hit[j]`` its slot (the primitive is ``slots[hit[j]]``), -1 on a miss. With ``any_hit``
@@ -263,7 +264,7 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
     idle. ``stack`` (2 STACK integers), ``dist`` (LANES numbers), ``inv`` (3 rows) and
     ``enters`` (PACKET integers) are work space."""
     busy = 0
-    for j in range(PACKET):
+    for j in range(n):
         inv[0, j], inv[1, j], inv[2, j] = 1.0 / ray[3, j], 1.0 / ray[4, j], 1.0 / ray[5, j]
         hit[j] = -1
         busy += tmax[j] > 0.0
@@ -272,11 +273,11 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
     while top > 0 and busy > 0:
         top -= 1
         nd = stack[top]
-        count = _packet_enters(box, nd, ray, inv, tmax, enters)
+        count = _packet_enters(box, nd, ray, inv, tmax, enters, n)
         if count == 0:
             continue
         if count <= ALONE:
-            for j in range(PACKET):
+            for j in range(n):
                 if not enters[j]:
                     continue
                 t, slot = _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, nd,
@@ -289,7 +290,7 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
             continue
         c0, c1 = child[nd, 0], child[nd, 1]
         if c0 >= 0:
-            stack[top], stack[top + 1] = _near_last(box, c0, c1, ray)
+            stack[top], stack[top + 1] = _near_last(box, c0, c1, ray, n)
             top += 2
             continue
         for blk in range(-c0 - 1, -c0 - 1 + c1):
@@ -297,16 +298,16 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
                 slot = blk * LANES + s
                 if slots[slot] < 0:
                     break
-                _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit)
+                _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n)
         if any_hit:
-            for j in range(PACKET):
+            for j in range(n):
                 if hit[j] >= 0 and tmax[j] > 0.0:
                     tmax[j] = -1.0
                     busy -= 1
 
 
 @kernel
-def _near_last(box, c0, c1, ray):
+def _near_last(box, c0, c1, ray, n):
     """The children in stack order, the one the packet reaches first on top: along the axis
     that separates their centres most, the packet's mean direction decides (its rays' hits in
     the near child then cut the far child's tests short)."""
@@ -316,7 +317,7 @@ def _near_last(box, c0, c1, ray):
         if g > gap:
             gap, axis = g, a
     heading = 0.0
-    for j in range(PACKET):
+    for j in range(n):
         heading += ray[3 + axis, j]
     c0_low = box[c0, 0, axis] + box[c0, 1, axis] <= box[c1, 0, axis] + box[c1, 1, axis]
     return (c1, c0) if c0_low == (heading >= 0.0) else (c0, c1)
