@@ -252,6 +252,12 @@ def mixture_eval(kinds, offs, p, step, nch, idx, n, ix, iy, iz, ox, oy, oz, out)
     """Add f(wi_j, wo_j), the sum of the lobes, to ``out[j, :nch]`` for each item j."""
     for l in range(kinds.shape[0]):
         kind, o0, o1 = kinds[l], offs[l], offs[l + 1]
+        if kind == K.LAMBERT:  # the commonest lobe, inlined: its formula costs less than a call
+            for t in range(n):
+                j = idx[t]
+                lambert.eval_(p[j * step][o0:o1], nch, ix[j], iy[j], iz[j], ox[j], oy[j], oz[j],
+                              out, j)
+            continue
         for t in range(n):
             j = idx[t]
             lobe_value(kind, p[j * step][o0:o1], nch, ix[j], iy[j], iz[j], ox[j], oy[j], oz[j],
@@ -270,12 +276,15 @@ def mixture_pdf(kinds, offs, p, step, nch, idx, n, ix, iy, iz, ox, oy, oz, sel, 
         kind, o0, o1 = kinds[l], offs[l], offs[l + 1]
         if is_delta(kind):
             continue
+        lam = kind == K.LAMBERT
         for t in range(n):
             j = idx[t]
             w = sel[j, l] if nl > 1 else 1.0
             if w > 0.0:
-                pdf[j] += w * lobe_pdf(kind, p[j * step][o0:o1], nch, ix[j], iy[j], iz[j],
-                                       ox[j], oy[j], oz[j])
+                q = p[j * step][o0:o1]
+                pdf[j] += w * (lambert.pdf_(q, nch, ix[j], iy[j], iz[j], ox[j], oy[j], oz[j])
+                               if lam else lobe_pdf(kind, q, nch, ix[j], iy[j], iz[j], ox[j],
+                                                    oy[j], oz[j]))
 
 
 @inline_kernel
@@ -305,11 +314,14 @@ def mixture_draw(kinds, offs, p, step, nch, idx, n, ix, iy, iz, u1, u2, ox, oy, 
         chosen[j], work[j, 0], work[j, 1] = c, w, u
     for l in range(nl):
         kind, o0, o1 = kinds[l], offs[l], offs[l + 1]
+        lam = kind == K.LAMBERT
         for t in range(n):
             j = idx[t]
             if chosen[j] == l:
-                ox[j], oy[j], oz[j], pdf[j] = lobe_sample(kind, p[j * step][o0:o1], nch, ix[j],
-                                                          iy[j], iz[j], work[j, 1], u2[j])
+                q = p[j * step][o0:o1]
+                ox[j], oy[j], oz[j], pdf[j] = (
+                    lambert.sample_(q, nch, ix[j], iy[j], iz[j], work[j, 1], u2[j]) if lam
+                    else lobe_sample(kind, q, nch, ix[j], iy[j], iz[j], work[j, 1], u2[j]))
     for t in range(n):
         j = idx[t]
         for c in range(nch):

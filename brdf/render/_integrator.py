@@ -23,7 +23,7 @@ from .. import sampling
 from ._intersect import LANES, PACKET, QUAD, SPHERE, STACK, plane_coordinates, trace_packet
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
                       pick_light, sample_light)
-from ._materials import K0, K1, bsdf_shade, material_params
+from ._materials import K0, K1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile
@@ -284,7 +284,7 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             q[s, 4, j] = -(dx * bx + dy * by + dz * bz)
             q[s, 5, j] = -(dx * sx + dy * sy + dz * sz)
         material_params(mint, params, bind, tex, texmeta, m, u, v, lp[j])
-        il[MAT, j] = m
+        il[MAT, j] = mint[m, SHARE]
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
         fl[QX, j], fl[QY, j], fl[QZ, j] = qx, qy, qz
         # next-event estimation: a light, a point or direction on it, and its shadow ray
@@ -319,14 +319,15 @@ def _lit(il, sh, j):
 
 @kernel
 def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel, work):
-    """The BSDF at each shaded path's vertex, one material at a time over the paths on it: a
+    """The BSDF at each shaded path's vertex, one batch per lobe layout (materials that share
+    one shade together, each path with its own parameters; see ``SHARE``): a
     sampled next direction (query set 1), and towards the light where the shadow ray got
     through (query set 0: f, and for MIS the BSDF's density there)."""
     mis = opts[STRATEGY] == MIS
     lists = il[LIST:LIST + 5]
     counts = il[COUNT]
     for j in range(PACKET):
-        # a lane still to shade holds MAT >= 0 until its material's turn
+        # a lane still to shade holds MAT >= 0 until its batch's turn
         if not il[ALIVE, j] or il[END, j]:
             il[MAT, j] = -1
     for first in range(PACKET):

@@ -14,8 +14,10 @@ re-evaluated in the right order).
 
 Material arrays (see :class:`brdf.render.scene.Compiled`): ``mint (nm, 11)`` one row per
 material (columns below: type, measured grid, ranges into ``kinds``, ``offs``, ``params`` and
-``bind``, flags); the concatenated compiled models ``kinds``, ``offs`` (each material's lobe
-offsets from 0) and ``params``; measured ``grids``, their gap-``filled`` copies and sampling
+``bind``, and the first material with the same lobes and parameter layout, whose batch its
+paths join: each path carries its own parameter row, so the Cornell box's three Lambertian
+walls shade as one batch); the concatenated compiled models ``kinds``, ``offs`` (each
+material's lobe offsets from 0) and ``params``; measured ``grids``, their gap-``filled`` copies and sampling
 ``tables``; texture bindings ``bind (nb, 4)`` (material, slot, texture, channel) and the
 textures ``tex`` (flat) with ``texmeta (nt, 4)`` (offset, width, height, channels).
 """
@@ -32,9 +34,7 @@ from ..sampling import square_to_cosine_hemisphere
 
 MODEL, MEASURED = 0, 1
 #: columns of ``mint``
-TYPE, GRID, K0, K1, O0, O1, P0, P1, FLAGS, B0, B1 = range(11)
-#: flags bit: the model is not reciprocal (evaluate f(l, v) explicitly after sampling)
-NONRECIPROCAL = 1
+TYPE, GRID, K0, K1, O0, O1, P0, P1, SHARE, B0, B1 = range(11)
 #: Tabulated sampling of measured tables: incidence bins, theta_o cells, phi_o cells.
 TAB_THETA_I, TAB_THETA, TAB_PHI = 24, 48, 96
 #: Share of cosine-weighted samples mixed into a measured table's tabulated sampling, so that

@@ -588,6 +588,7 @@ class _MaterialTable:
         from ..models.base import Model
         rows, kinds, offs, params = [], [], [], []
         grids, filled, tables, bind, tex, texmeta = [], [], [], [], [], []
+        shares = {}  # lobe layout -> the first material with it
         for i, mat in enumerate(self.items):
             b = mat.resolve()
             row = np.zeros(11, dtype=np.int64)
@@ -601,8 +602,8 @@ class _MaterialTable:
                                      f"{b.channels} channels")
                 c = b.compile(3)
                 row[M.TYPE] = M.MODEL
-                if not all(lobe.reciprocal for lobe in b.lobes):
-                    row[M.FLAGS] = M.NONRECIPROCAL
+                layout = (tuple(c.kinds), tuple(c.offsets))
+                row[M.SHARE] = shares.setdefault(layout, i)
                 _bind_textures(mat, b, c, i, bind, tex, texmeta)
                 kinds.extend(c.kinds)
                 offs.extend(c.offsets)
@@ -616,6 +617,7 @@ class _MaterialTable:
                                      f"{b.channels} channels")
                 t = b if isinstance(b, MerlTable) else MerlTable.from_table(b)
                 row[M.TYPE] = M.MEASURED
+                row[M.SHARE] = i
                 row[M.GRID] = len(grids)
                 grids.append(np.asarray(t._grid, float))
                 filled.append(np.asarray(t._filled, float))

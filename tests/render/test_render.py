@@ -49,6 +49,32 @@ def test_white_furnace_gives_directional_albedo():
     assert np.mean(expected) < 0.95
 
 
+def test_materials_with_one_layout_shade_in_one_batch():
+    """Materials whose lobes and parameter layout agree share a shading batch (each path
+    carries its own parameters); others, and measured tables, keep their own."""
+    from brdf.render import _materials as M
+    specs = ["lambert(albedo=0.2)", "lambert(albedo=[0.8, 0.5, 0.1])",
+             "lambert + ggx(alpha=0.2)", "lambert(albedo=0.3) + ggx(alpha=0.5, ks=0.2)",
+             "ggx + lambert", "lambert + beckmann(alpha=0.2)"]
+    shapes = [render.Sphere((3.0 * i, 0, 0), 1, s) for i, s in enumerate(specs)]
+    mint = render.Scene(shapes=shapes).compile().mats[0]
+    assert list(mint[:, M.SHARE]) == [0, 0, 2, 2, 4, 5]
+
+
+def test_shared_batch_keeps_each_paths_parameters():
+    """Two coplanar Lambertian squares (one batch) under a uniform sky of radiance 1: each
+    shows its own albedo: they cannot see each other, and a cosine-sampled bounce to the sky
+    carries rho exactly, so every path gives L = rho."""
+    albedo = (0.2, 0.8)
+    shapes = [render.Quad((x, -1.0, 0.0), (1.0, 0.0, 0.0), (0.0, 2.0, 0.0),
+                          f"lambert(albedo={a})") for x, a in zip((-1.0, 0.0), albedo)]
+    scene = render.Scene(render.Camera(origin=(0, 0, 3), target=(0, 0, 0), fov=30), shapes,
+                         environment=render.Environment(1.0))
+    r = render.render(scene, spp=16, size=16, seed=2, strategy="bsdf")
+    for half, a in zip((r.image[:, :8], r.image[:, 8:]), albedo):
+        np.testing.assert_allclose(half, a, rtol=1e-12)
+
+
 def test_closed_sphere_radiance():
     """Inside a closed sphere with Lambertian albedo rho emitting Le inwards, radiance is
     Le / (1 - rho) everywhere (the sum of the geometric series of bounces)."""
