@@ -2,7 +2,7 @@
 
 Such a sum is evaluated lobe by lobe: its built-in lobes together by the compiled kernels (one
 sub-sum, so Lambertian lobes still fold into the others' pass), its custom lobes by their numpy
-formulas. Sampling follows the kernels' mixture rule (``_kernels.mixture_sample``) exactly:
+formulas. Sampling follows the kernels' mixture rule (``_kernels.mixture_draw``) exactly:
 
     at wi, lobe l is picked with probability hint_l(wi) / sum_j hint_j(wi) (uniformly when every
     hint is 0), where a hint is a cheap albedo estimate (the kernels' ``lobe_hint`` for built-in
