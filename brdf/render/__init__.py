@@ -31,8 +31,10 @@ __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh"
            "STRATEGIES"]
 
 STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
-#: Pixels along a side of the square tiles that the threads share out.
-TILE = 16
+#: Pixels along a side of the square tiles that the threads share out. A tile's packet runs
+#: dry at its end (its last paths finish with lanes idle), so large tiles waste less: 32 gave
+#: 5 % over 16 on the Cornell box (64 tiles in a 256 x 256 image, enough to share out).
+TILE = 32
 
 
 @dataclass
