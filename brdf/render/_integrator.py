@@ -146,10 +146,11 @@ def _power(a, b):
 PICK, ON_LIGHT, BSDF_U1, BSDF_U2, ROULETTE = range(5)
 FLOAT_ROWS = AOV + 6
 #: rows of ``il``: the path is in flight, its pixel, depth (segments traced), whether the last
-#: bounce was specular, the slot its ray hit, its material, the lane of ``sh`` that holds its
-#: shadow ray (-1: none), what the shadow ray in each lane of ``sh`` hit, whether the path ends at this vertex, work space of the tracing (whether
-#: a ray enters a node) and of the shading (the lobe each path sampled, the lengths of the lists
-#: of lanes, five lists)
+#: bounce was specular, the slot its ray hit, its shading batch (its material's ``SHARE``), the
+#: lane of ``sh`` that holds its shadow ray (-1: none), what the shadow ray in each lane of
+#: ``sh`` hit, whether the path ends at this vertex, work space of the tracing (whether a ray
+#: enters a node) and of the shading (the lobe each path sampled, the lengths of the lists of
+#: lanes, five lists)
 (ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
  LIST) = range(14)
 INT_ROWS = LIST + 5

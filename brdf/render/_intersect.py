@@ -30,8 +30,6 @@ lanes, where they part ways.
 
 import math
 
-import numpy as np
-
 from .._jit import inline_kernel, kernel
 
 SPHERE, QUAD, TRIANGLE = 0, 1, 2

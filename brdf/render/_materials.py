@@ -17,9 +17,10 @@ material (columns below: type, measured grid, ranges into ``kinds``, ``offs``, `
 ``bind``, and the first material with the same lobes and parameter layout, whose batch its
 paths join: each path carries its own parameter row, so the Cornell box's three Lambertian
 walls shade as one batch); the concatenated compiled models ``kinds``, ``offs`` (each
-material's lobe offsets from 0) and ``params``; measured ``grids``, their gap-``filled`` copies and sampling
-``tables``; texture bindings ``bind (nb, 4)`` (material, slot, texture, channel) and the
-textures ``tex`` (flat) with ``texmeta (nt, 4)`` (offset, width, height, channels).
+material's lobe offsets from 0) and ``params``; measured ``grids``, their gap-``filled``
+copies and sampling ``tables``; texture bindings ``bind (nb, 4)`` (material, slot, texture,
+channel) and the textures ``tex`` (flat) with ``texmeta (nt, 4)`` (offset, width, height,
+channels).
 """
 
 import math
