@@ -154,10 +154,11 @@ FLOAT_ROWS = AOV + 6
 (ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
  LIST) = range(14)
 INT_ROWS = LIST + 5
-#: Length of the rows of the work arrays: PACKET lanes, then 8 unused. Rows of exactly 256
-#: numbers lie 2 KiB apart, so a lane's numbers in every row of every array fell into the same
-#: two sets of the 12-way L1 data cache, and the 50-odd rows a pass reads evicted each other; the
-#: pad staggers the rows over all sets (Cornell box: 8-10 % faster).
+#: Length of the rows of the work arrays: PACKET lanes, then 8 unused. Rows of a power of two
+#: of numbers (256: 2 KiB) lie a multiple of 2 KiB apart, so a lane's numbers in every row of
+#: every array fell into the same few sets of the 12-way L1 data cache, and the 50-odd rows a
+#: pass reads evicted each other; the pad staggers the rows over all sets (Cornell box, packets
+#: of 256: 8-10 % faster).
 ROW = PACKET + 8
 
 

@@ -192,11 +192,15 @@ def _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, start, o
 
 #: Rays traced together (the integrator's paths in flight per thread). Larger packets spread
 #: each pass's fixed costs (a node's test, a shading batch) over more paths: Cornell box, one
-#: thread, 64 -> 128 -> 256: 1.36 -> 1.62 -> 1.70 M paths/s, and 512 falls to 1.12 M (the
-#: packet's rows outgrow the caches); with a 44,400-triangle mesh in it 0.48 -> 0.52 -> 0.62.
-PACKET = 256
-#: A node that at most this many of a packet's rays enter is traversed by each ray alone.
-ALONE = 8
+#: thread, 64 -> 128 -> 256: 1.36 -> 1.62 -> 1.70 M paths/s; once the work arrays' rows were
+#: padded (the integrator's ROW), 512 gained another 4-7 % over 256 and 1,024 no more.
+PACKET = 512
+#: A node that at most this many of a packet's rays enter is traversed by each ray alone. The
+#: packet's test of a node costs all PACKET lanes, so the threshold grows with the packet: the
+#: Cornell box with a 44,400-triangle sphere in it, one thread, went from 0.58 M paths/s
+#: (packets of 256, threshold 8) to 0.66 M (512, 32; 24 and 48 did as well); the bare box is
+#: unaffected (every ray enters its two leaves).
+ALONE = 32
 
 
 @kernel
