@@ -13,7 +13,7 @@ d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
 import math
 
 from .._jit import inline_kernel, kernel
-from ..sampling import reflect_about
+from ..sampling import reflect_about, sincos_turn
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Choice, Model, Nested, Param
@@ -297,9 +297,9 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
             t1x, t1y = 1.0, 0.0
         t2x, t2y, t2z = -vz * t1y, vz * t1x, vx * t1y - vy * t1x  # T2 = cross(V, T1)
         r = math.sqrt(u1)
-        phi = 2.0 * math.pi * u2
-        p1 = r * math.cos(phi)
-        p2 = r * math.sin(phi)
+        sin_phi, cos_phi = sincos_turn(u2)
+        p1 = r * cos_phi
+        p2 = r * sin_phi
         s = 0.5 * (1.0 + vz)
         p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
         pz = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))

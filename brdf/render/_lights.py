@@ -129,8 +129,8 @@ def _sample_env(lf, env, rows, cols, e, u1, u2):
     if f[0] == 0.0:
         z = 1.0 - 2.0 * u1
         r = math.sqrt(max(0.0, 1.0 - z * z))
-        phi = 2.0 * math.pi * u2
-        return r * math.cos(phi), r * math.sin(phi), z, 1.0 / (4.0 * math.pi)
+        sin_phi, cos_phi = sampling.sincos_turn(u2)
+        return r * cos_phi, r * sin_phi, z, 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     i, fu = _invert(rows, u1)
     j, fv = _invert(cols[i], u2)
@@ -191,8 +191,8 @@ def _sample_area(prim, sph, quad, f, px, py, pz, u1, u2):
             cos_max = math.sqrt(max(0.0, 1.0 - r * r / dc2))
             ct = 1.0 - u1 * (1.0 - cos_max)
             st = math.sqrt(max(0.0, 1.0 - ct * ct))
-            phi = 2.0 * math.pi * u2
-            dx, dy, dz = sampling.from_axis_frame(st * math.cos(phi), st * math.sin(phi), ct,
+            sin_phi, cos_phi = sampling.sincos_turn(u2)
+            dx, dy, dz = sampling.from_axis_frame(st * cos_phi, st * sin_phi, ct,
                                                   wx / dc, wy / dc, wz / dc)
             b = dx * wx + dy * wy + dz * wz
             t = b - math.sqrt(max(0.0, b * b - dc2 + r * r))
@@ -200,8 +200,8 @@ def _sample_area(prim, sph, quad, f, px, py, pz, u1, u2):
         else:
             z = 1.0 - 2.0 * u1
             rr = math.sqrt(max(0.0, 1.0 - z * z))
-            phi = 2.0 * math.pi * u2
-            qx, qy, qz = cx + r * rr * math.cos(phi), cy + r * rr * math.sin(phi), cz + r * z
+            sin_phi, cos_phi = sampling.sincos_turn(u2)
+            qx, qy, qz = cx + r * rr * cos_phi, cy + r * rr * sin_phi, cz + r * z
         return qx, qy, qz, (qx - cx) / r, (qy - cy) / r, (qz - cz) / r
     g = quad[j]
     return (g[0, 0] + u1 * g[1, 0] + u2 * g[2, 0], g[0, 1] + u1 * g[1, 1] + u2 * g[2, 1],
