@@ -320,8 +320,10 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
 
 @kernel
 def _lit(il, sh, j):
-    """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length)."""
-    return il[NEE, j] >= 0 and sh[6, il[NEE, j]] >= 0.0
+    """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length);
+    no branch, since that is a coin toss a branch predictor misses half the time."""
+    nee = il[NEE, j]
+    return (nee >= 0) & (sh[6, max(nee, 0)] >= 0.0)
 
 
 @kernel
@@ -342,14 +344,14 @@ def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f,
         if m < 0:
             continue
         n0 = n2 = n3 = 0
-        # no branches: whether a lane is lit is a coin toss a branch predictor misses half the
-        # time, so each list takes every lane's index and its length moves where it belongs
+        # no branches (see _lit): each list takes every lane's index, and its length moves
+        # where the lane belongs
         for j in range(first, PACKET):
             here = il[MAT, j] == m
             il[MAT, j] = -1 if here else il[MAT, j]
             lists[0, n0] = lists[1, n0] = j
             n0 += here
-            lit = here & (il[NEE, j] >= 0) & (sh[6, max(il[NEE, j], 0)] >= 0.0)
+            lit = here & _lit(il, sh, j)
             lists[2, n2] = j
             n2 += lit
             lists[3, n3] = j
@@ -365,16 +367,16 @@ def _bounce(opts, mis, fl, il, sh, q, f, j):
     """Path j adds its light sample where the shadow ray got through, then turns into its
     sampled direction, or ends (END) where there is none, below the surface, or by Russian
     roulette."""
-    if _lit(il, sh, j):
-        lpdf, pick = fl[LPDF, j], fl[LPICK, j]
-        cos_l = max(q[0, 2, j], 0.0)
-        if lpdf == math.inf:
-            scale = cos_l / pick
-        else:
-            w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
-            scale = w * cos_l / (pick * lpdf)
-        for c in range(3):
-            fl[RAD + c, j] += fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
+    # a select, not a branch (see _lit): an unlit lane's numbers are stale, and whatever they
+    # make is dropped
+    lit = _lit(il, sh, j)
+    lpdf, pick = fl[LPDF, j], fl[LPICK, j]
+    cos_l = max(q[0, 2, j], 0.0)
+    w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
+    scale = cos_l / pick if lpdf == math.inf else w * cos_l / (pick * lpdf)
+    for c in range(3):
+        light = fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
+        fl[RAD + c, j] += light if lit else 0.0
     lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
     if il[DEPTH_, j] == 0:
         for c in range(3):
@@ -398,10 +400,8 @@ def _bounce(opts, mis, fl, il, sh, q, f, j):
     il[DEPTH_, j] += 1
     if il[DEPTH_, j] >= opts[RR]:
         keep = min(max(fl[THR, j], max(fl[THR + 1, j], fl[THR + 2, j])), 0.95)
-        if fl[U + ROULETTE, j] >= keep:
-            il[END, j] = 1
-            return
-        for c in range(3):
+        il[END, j] = fl[U + ROULETTE, j] >= keep  # a coin toss: no branch (a path that ends
+        for c in range(3):                          # here spends its throughput)
             fl[THR + c, j] /= keep
 
 
