@@ -271,18 +271,19 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
                 w = 1.0
                 if not specular and strategy == MIS:
                     w = _power(fl[PREV, j], pmf[light] * area_pdf(prim, sph, lf[light], ox, oy,
-                                                                  oz, px, py, pz, nx, ny, nz))
+                                                                  oz, dx, dy, dz, t, nx, ny, nz))
                 for c in range(3):
                     fl[RAD + c, j] += fl[THR + c, j] * w * lf[light, 3 + c]
         m = prim[hit, 2]
         if il[DEPTH_, j] + 1 >= opts[DEPTH] or m < 0:
             il[END, j] = 1
             continue
-        # shade on the side the ray arrives from (two-sided surfaces)
-        if nx * dx + ny * dy + nz * dz > 0.0:
-            nx, ny, nz = -nx, -ny, -nz
-        if sx * nx + sy * ny + sz * nz < 0.0:
-            sx, sy, sz = -sx, -sy, -sz
+        # shade on the side the ray arrives from (two-sided surfaces); signs, not branches:
+        # which side of a wall a path meets it from is a coin toss across the lanes
+        side = -1.0 if nx * dx + ny * dy + nz * dz > 0.0 else 1.0
+        nx, ny, nz = side * nx, side * ny, side * nz
+        side = -1.0 if sx * nx + sy * ny + sz * nz < 0.0 else 1.0
+        sx, sy, sz = side * sx, side * sy, side * sz
         ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
         fl[NX, j], fl[NY, j], fl[NZ, j], fl[SX, j], fl[SY, j], fl[SZ, j] = nx, ny, nz, sx, sy, sz
         fl[AX, j], fl[AY, j], fl[AZ, j], fl[BX, j], fl[BY, j], fl[BZ, j] = ax, ay, az, bx, by, bz

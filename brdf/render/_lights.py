@@ -155,12 +155,10 @@ def emits_towards(f, nx, ny, nz, dx, dy, dz):
 
 
 @inline_kernel
-def area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz):
-    """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point q (on
-    the light, outward normal n)."""
+def area_pdf(prim, sph, f, px, py, pz, dx, dy, dz, dist, nx, ny, nz):
+    """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point at
+    ``dist`` along the unit direction d (on the light, outward normal n)."""
     i = int(f[0])
-    dx, dy, dz = qx - px, qy - py, qz - pz
-    d2 = dx * dx + dy * dy + dz * dz
     if prim[i, 0] == SPHERE:
         s = sph[prim[i, 1]]
         cx, cy, cz, r = s[0] - px, s[1] - py, s[2] - pz, s[3]
@@ -169,10 +167,10 @@ def area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz):
             # uniform over the cone of the sphere's silhouette (PBR 4th ed. 6.2.4)
             cos_max = math.sqrt(max(0.0, 1.0 - r * r / dc2))
             return 1.0 / (2.0 * math.pi * (1.0 - cos_max))
-    cos_l = abs(nx * dx + ny * dy + nz * dz) / math.sqrt(d2)
+    cos_l = abs(nx * dx + ny * dy + nz * dz)
     if cos_l <= 0.0:
         return 0.0
-    return d2 / (f[2] * cos_l)  # uniform by area: dA = r^2 / cos d(omega)
+    return dist * dist / (f[2] * cos_l)  # uniform by area: dA = r^2 / cos d(omega)
 
 
 @inline_kernel
@@ -259,7 +257,7 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
             return dx, dy, dz, r, 0.0
         for c in range(3):
             li[c] = f[3 + c]
-        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, qx, qy, qz, nx, ny, nz)
+        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, dx, dy, dz, r, nx, ny, nz)
     dx, dy, dz, pdf = _sample_env(lf, env, rows, cols, l, u1, u2)
     li[0], li[1], li[2] = env_radiance(lf, env, l, dx, dy, dz)
     return dx, dy, dz, math.inf, pdf
