@@ -17,7 +17,8 @@ import os
 import re
 
 import numba
-from numba.core import caching, datamodel, types
+from numba.core import caching, cgutils, datamodel, types
+from numba.extending import intrinsic
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
@@ -163,3 +164,21 @@ def parallel_kernel(fn):
     """Compile an array kernel whose ``prange`` loops run on all cores."""
     return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH,
                                           error_model="numpy", parallel=True))
+
+
+@intrinsic
+def fetch_add(typingctx, counter, value):
+    """Atomically add ``value`` to ``counter[0]`` (an int64 array) and return its old value:
+    the threads of a parallel loop take turns at a shared queue of work with it."""
+    if not (isinstance(counter, types.Array) and counter.dtype == types.int64
+            and isinstance(value, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        first = cgutils.get_item_pointer(context, builder, signature.args[0], ary,
+                                         [context.get_constant(types.intp, 0)])
+        step = context.cast(builder, args[1], signature.args[1], types.int64)
+        return builder.atomic_rmw("add", first, step, "monotonic")
+
+    return types.int64(counter, value), codegen

@@ -6,12 +6,13 @@ toy kernels hold the three ways they arose (literal constants, read-only arrays,
 unsigned counter) to one specialisation each.
 """
 
+import numba
 import numpy as np
 import pytest
 from numba import prange, typeof
 from numba.core import types
 
-from brdf._jit import allocating_kernel, kernel, parallel_kernel
+from brdf._jit import allocating_kernel, fetch_add, kernel, parallel_kernel
 
 
 @kernel
@@ -110,3 +111,19 @@ def test_a_kernel_cannot_allocate_but_an_allocating_kernel_can():
     b = _copied(a)
     b[0] = 7.0
     assert a[0] == 0.0 and b.sum() == 10.0
+
+
+def test_fetch_add_hands_each_item_to_exactly_one_thread():
+    @numba.njit(parallel=True)
+    def take(queue, taken, workers):
+        for _ in prange(workers):
+            while True:
+                k = fetch_add(queue, 1)
+                if k >= taken.shape[0]:
+                    break
+                taken[k] += 1
+
+    queue, taken = np.zeros(1, np.int64), np.zeros(20_000, np.int64)
+    take(queue, taken, 8)
+    assert (taken == 1).all()
+    assert queue[0] == taken.shape[0] + 8  # each worker's last turn finds the queue empty

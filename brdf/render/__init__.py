@@ -155,17 +155,14 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     seed = _seed(seed)
     compiled = scene.compile()
     cam = scene.camera.pack(w, h)
-    opts = np.array([w, h, depth, max(int(rr_depth), 1), STRATEGIES[strategy], int(bool(jitter)),
-                     TILE], dtype=np.int64)
     acc, acc2 = np.zeros((h, w, 3)), np.zeros((h, w, 3))
     aov = np.zeros((h, w, 6))
     args = (cam, compiled.geo, compiled.mats, compiled.lights)
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    # tiles go to the threads one at a time as they finish, not in equal shares: a share of
-    # the image can cost more than another (the Cornell box's lower half: 10 % idle time)
-    old_chunk = numba.set_parallel_chunksize(1)
+    opts = np.array([w, h, depth, max(int(rr_depth), 1), STRATEGIES[strategy], int(bool(jitter)),
+                     TILE, numba.get_num_threads()], dtype=np.int64)
     try:
         t0 = time.perf_counter()
         # the first call compiles (or loads the cache); time it apart, on a 1-pixel image
@@ -188,7 +185,6 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         seconds = time.perf_counter() - t0
     finally:
         numba.set_num_threads(old)
-        numba.set_parallel_chunksize(old_chunk)
         if 'bar' in locals() and bar is not None:
             bar.close()
     n = float(spp)
