@@ -34,9 +34,10 @@ def sincos_octant(x):
 
 @kernel
 def sincos_turn(u):
-    """``(sin 2 pi u, cos 2 pi u)`` for u >= 0 (the azimuth of a uniform number): u less its
-    nearest quarter turn k / 4 (exact: the two are within a factor of 2, Sterbenz's lemma)
-    through :func:`sincos_octant`, then rotated by k quarter turns."""
+    """``(sin 2 pi u, cos 2 pi u)``, u an angle in turns (the azimuth of a uniform number, or
+    any other, negative too): u less its nearest quarter turn k / 4 (exact: the two are within
+    a factor of 2, Sterbenz's lemma) through :func:`sincos_octant`, then rotated by k quarter
+    turns."""
     k = math.floor(4.0 * u + 0.5)
     s, c = sincos_octant((2.0 * math.pi) * (u - 0.25 * k))
     quarter = int(k) & 3

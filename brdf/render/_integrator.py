@@ -27,7 +27,7 @@ from ._materials import K0, K1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
-#: threads
+#: threads (passed in: numba.get_num_threads inside a kernel keeps numba from caching it)
 W, H, DEPTH, RR, STRATEGY, JITTER, TILE, THREADS = range(8)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 

@@ -134,9 +134,11 @@ def _sample_env(lf, env, rows, cols, e, u1, u2):
     h, w = env.shape[0], env.shape[1]
     i, fu = _invert(rows, u1)
     j, fv = _invert(cols[i], u2)
-    theta, phi = (i + fu) / h * math.pi, (j + fv) / w * 2.0 * math.pi
+    # theta = pi (i + fu) / h and phi = 2 pi (j + fv) / w, in turns
+    sin_t, cos_t = sampling.sincos_turn(0.5 * (i + fu) / h)
+    sin_p, cos_p = sampling.sincos_turn((j + fv) / w)
     # inverse of _env_pixel: x = sin(theta) sin(phi), y = cos(theta), z = -sin(theta) cos(phi)
-    x, y, z = math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi)
+    x, y, z = sin_t * sin_p, cos_t, -sin_t * cos_p
     # the frame is a rotation: world = frame^T local
     dx = f[6] * x + f[9] * y + f[12] * z
     dy = f[7] * x + f[10] * y + f[13] * z

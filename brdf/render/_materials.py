@@ -31,7 +31,7 @@ from numba import prange
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from ..io.merl import trilinear_pair
 from ..models._kernels import continuous, cosine_over_pdf, mixture_batch
-from ..sampling import square_to_cosine_hemisphere
+from ..sampling import sincos_turn, square_to_cosine_hemisphere
 
 MODEL, MEASURED = 0, 1
 #: columns of ``mint``
@@ -123,9 +123,10 @@ def _tab_sample(cdf, vx, vy, vz, u1, u2):
     c0 = math.cos(it * (0.5 * math.pi) / TAB_THETA)
     c1 = math.cos((it + 1) * (0.5 * math.pi) / TAB_THETA)
     z = c0 + (c1 - c0) * s
-    phi = (ip + u2) * (2.0 * math.pi / TAB_PHI) + math.atan2(vy, vx)
+    # phi in turns: the cell's, from the azimuth of v
+    sin_phi, cos_phi = sincos_turn((ip + u2) / TAB_PHI + math.atan2(vy, vx) / (2.0 * math.pi))
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    return r * math.cos(phi), r * math.sin(phi), z
+    return r * cos_phi, r * sin_phi, z
 
 
 @inline_kernel
