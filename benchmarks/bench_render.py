@@ -1,12 +1,14 @@
 """Path-tracing throughput on the Cornell box against Mitsuba 3, in the same run.
 
-Run: ``python benchmarks/bench_render.py [--size 256] [--spp 64] [--depth 8] [--repeats 5]``
+Run: ``python benchmarks/bench_render.py [--size 256] [--spp 64] [--depth 8] [--repeats 5]
+[--layers]``
 
 Both render Mitsuba 3's ``cornell_box()`` (ours: ``brdf.render.builtin("cornell")``, the same
 geometry, colours, light and camera) at the same size, samples per pixel and maximum depth:
 
 - ``brdf``: :func:`brdf.render.render` (numba, all cores, float64); its one-time compilation
-  (or cache load) is reported apart;
+  (or cache load) is reported apart. Like ``mi.render``, it estimates the image alone
+  (``layers=False``); ``--layers`` times it with the variance, albedo and normal layers too;
 - ``mitsuba``: ``mi.render`` with the ``llvm_ad_rgb`` variant (Dr.Jit's LLVM back end, SIMD
   float32 on all cores; it needs Debian's libllvm19, found as in ``mitsuba_baseline``); the
   first render, which traces and compiles its kernels, is reported apart too.
@@ -36,6 +38,8 @@ def main():
     ap.add_argument("--spp", type=int, default=64)
     ap.add_argument("--depth", type=int, default=8)
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--layers", action="store_true",
+                    help="ours also estimates the variance, albedo and normal layers")
     args = ap.parse_args()
     n = args.size * args.size * args.spp
 
@@ -44,7 +48,8 @@ def main():
     compile_seconds = []
 
     def ours(seed):
-        r = render.render(scene, spp=args.spp, size=args.size, seed=seed, max_depth=args.depth)
+        r = render.render(scene, spp=args.spp, size=args.size, seed=seed, max_depth=args.depth,
+                          layers=args.layers)
         compile_seconds.append(r.compile_seconds)
         return r.image
 
@@ -67,7 +72,8 @@ def main():
     ours_rate, mrate = n / min(times), n / min(mtimes)
     pairs = sorted(m / t for t, m in zip(times, mtimes))
     print(f"brdf     first call {first:7.2f} s (compile or cache load {compile_seconds[0]:.2f} s), "
-          f"best {min(times):6.3f} s, {ours_rate / 1e6:6.3f} M samples/s")
+          f"best {min(times):6.3f} s, {ours_rate / 1e6:6.3f} M samples/s "
+          f"({'with' if args.layers else 'without'} layers)")
     print(f"mitsuba  first call {mfirst:7.2f} s (trace + kernel compile), best {min(mtimes):6.3f} s, "
           f"{mrate / 1e6:6.3f} M samples/s  ({mi.variant()})")
     print(f"ratio brdf / mitsuba: {ours_rate / mrate:.2f}x (best against best); turn by turn "

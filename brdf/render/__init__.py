@@ -16,6 +16,7 @@ import math
 import sys
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -47,12 +48,13 @@ class RenderResult:
     ----------
     image : ndarray (h, w, 3)
         Mean radiance per pixel (linear RGB).
-    variance : ndarray (h, w, 3)
+    variance : ndarray (h, w, 3) or None
         Variance of that mean (sample variance over spp); its square root is the pixel's
-        standard error.
-    albedo, normal : ndarray (h, w, 3)
+        standard error. None when rendered without layers.
+    albedo, normal : ndarray (h, w, 3) or None
         First-hit layers: a one-sample-per-path estimate of the directional albedo towards
-        the camera, averaged; the mean shading normal (world space).
+        the camera, averaged; the mean shading normal (world space). None when rendered
+        without layers.
     spp, seed : int
     seconds : float
         Wall time of the sampling itself.
@@ -61,9 +63,9 @@ class RenderResult:
     """
 
     image: np.ndarray
-    variance: np.ndarray
-    albedo: np.ndarray
-    normal: np.ndarray
+    variance: Optional[np.ndarray]
+    albedo: Optional[np.ndarray]
+    normal: Optional[np.ndarray]
     spp: int
     seed: int
     seconds: float
@@ -76,12 +78,13 @@ class RenderResult:
 
     def save(self, path, force=False, layers=True):
         """Write an OpenEXR file (float32 RGB, with ``albedo``, ``normal`` and ``variance``
-        layers unless ``layers`` is False), or an sRGB preview when ``path`` ends in .png."""
+        layers unless ``layers`` is False or the render has none), or an sRGB preview when
+        ``path`` ends in .png."""
         from .image import tonemap, write_exr, write_png
         if str(path).lower().endswith(".png"):
             return write_png(path, tonemap(self.image), force)
         extra = ({"albedo": self.albedo, "normal": self.normal, "variance": self.variance}
-                 if layers else None)
+                 if layers and self.variance is not None else None)
         return write_exr(path, self.image, extra, force)
 
     def preview(self, path, exposure=0.0, force=False):
@@ -117,7 +120,7 @@ def _seed(seed):
 
 
 def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, strategy="mis",
-           jitter=True, threads=None, progress=None):
+           jitter=True, threads=None, progress=None, layers=True):
     """Render ``scene`` (a :class:`Scene`) with the path tracer.
 
     Parameters
@@ -144,6 +147,10 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         Worker threads (default: numba's, all cores). The image does not depend on it.
     progress : bool, optional
         A progress bar on stderr (default: only when stderr is a terminal).
+    layers : bool
+        Also estimate the per-pixel variance and the first-hit albedo and normal (default).
+        False leaves them None and renders a few per cent faster; the image is the same to
+        the bit.
 
     Returns
     -------
@@ -155,14 +162,16 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     seed = _seed(seed)
     compiled = scene.compile()
     cam = scene.camera.pack(w, h)
-    acc, acc2 = np.zeros((h, w, 3)), np.zeros((h, w, 3))
-    aov = np.zeros((h, w, 6))
+    acc = np.zeros((h, w, 3))
+    # without layers the kernel never touches these
+    acc2, aov = (np.zeros((h, w, 3)), np.zeros((h, w, 6))) if layers else (
+        np.zeros((1, 1, 3)), np.zeros((1, 1, 6)))
     args = (cam, compiled.geo, compiled.mats, compiled.lights)
     old = numba.get_num_threads()
     if threads is not None:
         numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     opts = np.array([w, h, depth, max(int(rr_depth), 1), STRATEGIES[strategy], int(bool(jitter)),
-                     TILE, numba.get_num_threads()], dtype=np.int64)
+                     TILE, numba.get_num_threads(), int(bool(layers))], dtype=np.int64)
     try:
         t0 = time.perf_counter()
         # the first call compiles (or loads the cache); time it apart, on a 1-pixel image
@@ -189,6 +198,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
             bar.close()
     n = float(spp)
     mean = acc / n
+    if not layers:
+        return RenderResult(mean, None, None, None, int(spp), seed, seconds, compile_seconds)
     var = np.maximum(acc2 / n - mean * mean, 0.0) / max(n - 1.0, 1.0)
     return RenderResult(mean, var, aov[..., :3] / n, aov[..., 3:] / n, int(spp), seed, seconds,
                         compile_seconds)

@@ -27,8 +27,9 @@ from ._materials import K0, K1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
-#: threads (passed in: numba.get_num_threads inside a kernel keeps numba from caching it)
-W, H, DEPTH, RR, STRATEGY, JITTER, TILE, THREADS = range(8)
+#: threads (passed in: numba.get_num_threads inside a kernel keeps numba from caching it),
+#: whether to estimate the extra layers (first-hit albedo and normal, the squared radiance)
+W, H, DEPTH, RR, STRATEGY, JITTER, TILE, THREADS, LAYERS = range(9)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
@@ -194,8 +195,9 @@ def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
                                                                                    y, state, j)
     for c in range(3):
         fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
-    for c in range(6):
-        fl[AOV + c, j] = 0.0
+    if opts[LAYERS]:
+        for c in range(6):
+            fl[AOV + c, j] = 0.0
     fl[PREV, j] = 0.0
     il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
     il[SPECULAR, j], il[END, j] = 1, 0
@@ -211,17 +213,26 @@ def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state,
     sample, so a packet's camera rays are neighbours). Returns the next pair and the number of
     paths in flight."""
     mis = opts[STRATEGY] == MIS
+    layers = opts[LAYERS] != 0
     busy = 0
+    # the next pair's pixel and sample, stepped along (integer division costs tens of cycles)
+    k = start % npix
+    x, y, s = k % tw, k // tw, start // npix
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
-            _bounce(opts, mis, fl, il, sh, q, f, j)
+            _bounce(opts, mis, layers, fl, il, sh, q, f, j)
         if il[ALIVE, j] and il[END, j]:
-            _settle(fl, il, acc, acc2, aov_acc, j)
+            _settle(layers, fl, il, acc, acc2, aov_acc, j)
         if not il[ALIVE, j] and start < total:
-            k = start % npix
-            _launch(cam, opts, seed, x0 + k % tw, y0 + k // tw, s0 + start // npix, fl, il,
-                    state, j)
+            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, state, j)
             start += 1
+            x += 1
+            if x == tw:
+                x = 0
+                y += 1
+                if y * tw == npix:
+                    y = 0
+                    s += 1
         fl[T, j] = math.inf if il[ALIVE, j] else -1.0
         busy += il[ALIVE, j]
     return start, busy
@@ -365,10 +376,10 @@ def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f,
 
 
 @inline_kernel
-def _bounce(opts, mis, fl, il, sh, q, f, j):
+def _bounce(opts, mis, layers, fl, il, sh, q, f, j):
     """Path j adds its light sample where the shadow ray got through, then turns into its
     sampled direction, or ends (END) where there is none, below the surface, or by Russian
-    roulette."""
+    roulette; at its first vertex it records the first-hit layers if ``layers``."""
     # a select, not a branch (see _lit): an unlit lane's numbers are stale, and whatever they
     # make is dropped
     lit = _lit(il, sh, j)
@@ -380,7 +391,7 @@ def _bounce(opts, mis, fl, il, sh, q, f, j):
         light = fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
         fl[RAD + c, j] += light if lit else 0.0
     lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
-    if il[DEPTH_, j] == 0:
+    if layers and il[DEPTH_, j] == 0:
         for c in range(3):
             fl[AOV + c, j] = f[1, j, c] if pdf != 0.0 else 0.0
         fl[AOV + 3, j], fl[AOV + 4, j], fl[AOV + 5, j] = fl[SX, j], fl[SY, j], fl[SZ, j]
@@ -408,17 +419,20 @@ def _bounce(opts, mis, fl, il, sh, q, f, j):
 
 
 @inline_kernel
-def _settle(fl, il, acc, acc2, aov_acc, j):
-    """Add the ended path j to its pixel's running sums and free its lane."""
+def _settle(layers, fl, il, acc, acc2, aov_acc, j):
+    """Add the ended path j to its pixel's running sums (the layers' too, if ``layers``) and
+    free its lane."""
     x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
     for c in range(3):
         r = fl[RAD + c, j]
         if r != r or r == math.inf:
             r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
         acc[y, x, c] += r
-        acc2[y, x, c] += r * r
-    for c in range(6):
-        aov_acc[y, x, c] += fl[AOV + c, j]
+        if layers:
+            acc2[y, x, c] += r * r
+    if layers:
+        for c in range(6):
+            aov_acc[y, x, c] += fl[AOV + c, j]
     il[ALIVE, j] = 0
 
 
@@ -429,9 +443,9 @@ def trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots
                seed, x0, y0, x1, y1, s0, s1, acc, acc2, aov_acc,
                fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li):
     """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) into the running sums (see
-    :func:`render_pass`): for each, the radiance along its camera ray, and the first hit's
-    albedo estimate (f cos / pdf of one BSDF sample) and shading normal. The other arrays are
-    the packet's work space (:func:`_packet_space`)."""
+    :func:`render_pass`): for each, the radiance along its camera ray, and with opts[LAYERS]
+    the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal. The
+    other arrays are the packet's work space (:func:`_packet_space`)."""
     tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     total = npix * (s1 - s0)
     start = 0
@@ -468,8 +482,9 @@ def _packet_space(nparams, nlobes):
 
 @parallel_kernel
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
-    """Add samples s0 .. s1 - 1 of every pixel to the running sums: radiance into ``acc``, its
-    square into ``acc2`` and the first-hit layers into ``aov_acc`` (h, w, 6). The threads take
+    """Add samples s0 .. s1 - 1 of every pixel to the running sums: radiance into ``acc``, and
+    if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov_acc`` (h, w,
+    6). The threads take
     tiles of opts[TILE]^2 pixels from a shared queue, each traced by :func:`trace_tile` in a
     packet of paths; a tile's pixels are its own, so the sums do not depend on who traced it.
     The scene's tuples are unpacked here, once (see :mod:`._intersect` on why the kernels take

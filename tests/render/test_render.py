@@ -231,6 +231,22 @@ def test_exr_layers_round_trip(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_without_layers_the_same_image(tmp_path):
+    """layers=False skips the variance, albedo and normal sums, and only them: the image is the
+    same to the bit (a glossy sum and a texture-free Cornell box), and the EXR is RGB only."""
+    import OpenEXR
+    glossy = _glossy_scene("lambert(albedo=0.5) + ggx(alpha=0.3)")
+    for scene in (glossy, render.builtin("cornell")):
+        full = render.render(scene, spp=4, size=(12, 10), seed=5)
+        bare = render.render(scene, spp=4, size=(12, 10), seed=5, layers=False)
+        assert bare.image.tobytes() == full.image.tobytes()
+        assert bare.variance is None and bare.albedo is None and bare.normal is None
+        assert full.variance.max() > 0 and np.abs(full.normal).max() > 0
+    path = bare.save(tmp_path / "bare.exr")
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        assert set(f.channels()) == {"R", "G", "B"}
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"spp": 0}, "spp"), ({"size": (0, 4)}, "size"), ({"strategy": "nee"}, "strategy"),
     ({"max_depth": 0}, "max_depth"), ({"seed": -1}, "seed"),

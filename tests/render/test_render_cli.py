@@ -60,6 +60,18 @@ def test_render_json_and_png_output(capsys, tmp_path):
     assert out_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_render_no_layers_writes_rgb_only(capsys, tmp_path):
+    import OpenEXR
+    full, bare = tmp_path / "full.exr", tmp_path / "bare.exr"
+    assert run(capsys, "render", "lambert", "-o", full, *SMALL)[0] == 0
+    assert run(capsys, "render", "lambert", "-o", bare, "--no-layers", *SMALL)[0] == 0
+    with OpenEXR.File(str(full), separate_channels=True) as f:
+        assert "variance.R" in f.channels()
+    with OpenEXR.File(str(bare), separate_channels=True) as f:
+        assert set(f.channels()) == {"R", "G", "B"}
+    np.testing.assert_array_equal(read_image(bare), read_image(full))
+
+
 def test_render_same_seed_same_bytes(capsys, tmp_path):
     a, b = tmp_path / "a.exr", tmp_path / "b.exr"
     for path in (a, b):
