@@ -62,7 +62,7 @@ def _uniform(state, j):
 @inline_kernel
 def _surface(prim, sph, quad, tri, tri_n, tri_uv, i, a, b, px, py, pz):
     """Geometric normal n, shading normal s, tangent t and texture coordinates (u, v) at point
-    p of primitive i hit with parameters (a, b)."""
+    p of primitive i hit with parameters (a, b). A quad's t is a unit vector orthogonal to n."""
     j = prim[i, 1]
     kind = prim[i, 0]
     if kind == SPHERE:
@@ -73,7 +73,7 @@ def _surface(prim, sph, quad, tri, tri_n, tri_uv, i, a, b, px, py, pz):
         return nx, ny, nz, nx, ny, nz, -ny, nx, 0.0, u, v
     if kind == QUAD:
         g = quad[j]
-        return (g[3, 0], g[3, 1], g[3, 2], g[3, 0], g[3, 1], g[3, 2], g[1, 0], g[1, 1], g[1, 2],
+        return (g[3, 0], g[3, 1], g[3, 2], g[3, 0], g[3, 1], g[3, 2], g[6, 0], g[6, 1], g[6, 2],
                 a, b)
     v3 = tri[j]
     e1x, e1y, e1z = v3[1, 0] - v3[0, 0], v3[1, 1] - v3[0, 1], v3[1, 2] - v3[0, 2]
@@ -271,8 +271,9 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             continue
         t = fl[T, j]
         hit = slots[slot]
+        kind = prim[hit, 0]
         a, b = 0.0, 0.0
-        if prim[hit, 0] != SPHERE:
+        if kind != SPHERE:
             a, b = plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t)
         px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
         nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,
@@ -296,7 +297,13 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
         nx, ny, nz = side * nx, side * ny, side * nz
         side = -1.0 if sx * nx + sy * ny + sz * nz < 0.0 else 1.0
         sx, sy, sz = side * sx, side * sy, side * sz
-        ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
+        if kind == QUAD:
+            # its tangent is of unit length and orthogonal to s = +-n: Gram-Schmidt's square
+            # root and division were the longest wait of the vertex pass (sampled with perf)
+            ax, ay, az = tx, ty, tz
+            bx, by, bz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
+        else:
+            ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
         fl[NX, j], fl[NY, j], fl[NZ, j], fl[SX, j], fl[SY, j], fl[SZ, j] = nx, ny, nz, sx, sy, sz
         fl[AX, j], fl[AY, j], fl[AZ, j], fl[BX, j], fl[BY, j], fl[BZ, j] = ax, ay, az, bx, by, bz
         for s in range(2):

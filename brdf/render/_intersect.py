@@ -10,8 +10,9 @@ counting a reference to each member, which cost more than the intersection tests
 Geometry arrays (see :class:`brdf.render.scene.Compiled`):
 
 - ``sph (ns, 4)``: centre and radius;
-- ``quad (nq, 6, 3)``: corner p, edges e1 and e2, unit normal n = e1 x e2 / |e1 x e2|, and the
-  dual vectors q1, q2 with (x - p) . q1 = a, (x - p) . q2 = b for x = p + a e1 + b e2;
+- ``quad (nq, 7, 3)``: corner p, edges e1 and e2, unit normal n = e1 x e2 / |e1 x e2|, the
+  dual vectors q1, q2 with (x - p) . q1 = a, (x - p) . q2 = b for x = p + a e1 + b e2, and the
+  unit tangent e1 / |e1| (the shading frame's);
 - ``tri (nt, 3, 3)`` vertices, ``tri_n (nt, 3, 3)`` vertex normals (zero rows: flat shading),
   ``tri_uv (nt, 3, 2)``;
 - BVH nodes ``box (nn, 2, 3)`` (lower and upper corners) and ``child (nn, 2)``: an inner node

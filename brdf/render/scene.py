@@ -359,7 +359,7 @@ class Scene:
         prim = np.full((len(prims), 4), -1, dtype=np.int64)
         prim[:, :3] = [p[:3] for p in prims]
         sph = np.array(sph, float).reshape(-1, 4)
-        quad = np.array(quad, float).reshape(-1, 6, 3)
+        quad = np.array(quad, float).reshape(-1, 7, 3)
         tri = np.array(tri, float).reshape(-1, 3, 3)
         tri_n = np.array(tri_n, float).reshape(-1, 3, 3)
         tri_uv = np.array(tri_uv, float).reshape(-1, 3, 2)
@@ -396,7 +396,7 @@ def _quad_row(s, k):
     if np.linalg.norm(np.cross(e1, e2)) == 0:
         raise InputError(f"shape {k} (quad): edges are parallel")
     n, q1, q2 = _plane_frame(e1[None], e2[None])
-    return np.stack([c, e1, e2, n[0], q1[0], q2[0]])
+    return np.stack([c, e1, e2, n[0], q1[0], q2[0], e1 / np.linalg.norm(e1)])
 
 
 def _plane_frame(e1, e2):
