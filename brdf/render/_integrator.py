@@ -168,8 +168,9 @@ ROW = PACKET + 8
 def _camera_ray(cam, opts, x, y, state, j):
     jx = _uniform(state, j) if opts[JITTER] else 0.5
     jy = _uniform(state, j) if opts[JITTER] else 0.5
-    sx = 2.0 * (x + jx) / opts[W] - 1.0
-    sy = 1.0 - 2.0 * (y + jy) / opts[H]
+    # the pixel's extent is packed: a division and two integer conversions less a path
+    sx = (x + jx) * cam[12] - 1.0
+    sy = 1.0 - (y + jy) * cam[13]
     dx = cam[3] + sx * cam[6] + sy * cam[9]
     dy = cam[4] + sx * cam[7] + sy * cam[10]
     dz = cam[5] + sx * cam[8] + sy * cam[11]

@@ -60,6 +60,9 @@ class Camera:
     fov_axis: str = "x"
 
     def pack(self, width, height):
+        """The kernels' camera (15 numbers): origin, unit forward, right and up scaled to the
+        half-extents of the image plane at distance 1, a pixel's extent 2 / width and
+        2 / height in that plane's [-1, 1] coordinates, and one unused slot."""
         o = _vec(self.origin, "camera origin")
         fwd = _unit(np.subtract(self.target, o), "camera target - origin")
         right = np.cross(fwd, _unit(self.up, "camera up"))
@@ -76,7 +79,7 @@ class Camera:
                              f"{self.fov_axis!r}")
         t = math.tan(math.radians(float(self.fov)) / 2.0)
         tx, ty = (t, t * height / width) if axis == "x" else (t * width / height, t)
-        return np.concatenate([o, fwd, tx * right, ty * up, [0.0, 0.0, 0.0, 0.0]])
+        return np.concatenate([o, fwd, tx * right, ty * up, [2.0 / width, 2.0 / height, 0.0]])
 
 
 # --- materials --------------------------------------------------------------------------------
