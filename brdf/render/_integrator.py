@@ -188,7 +188,7 @@ def _draw(fl, state):
             fl[U + k, j] = _uniform(state, j)
 
 
-@kernel
+@inline_kernel
 def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
     """Start the path of (pixel, sample) in lane j: its stream and camera ray."""
     state[j] = _stream(seed, y * opts[W] + x, sample)
