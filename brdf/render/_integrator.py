@@ -284,8 +284,8 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             if strategy != LIGHT or specular:
                 w = 1.0
                 if not specular and strategy == MIS:
-                    w = _power(fl[PREV, j], pmf[light] * area_pdf(prim, sph, lf[light], ox, oy,
-                                                                  oz, dx, dy, dz, t, nx, ny, nz))
+                    w = _power(fl[PREV, j], pmf[light] * area_pdf(
+                        prim, sph, lf[light], ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
                 for c in range(3):
                     fl[RAD + c, j] += fl[THR + c, j] * w * lf[light, 3 + c]
         m = prim[hit, 2]

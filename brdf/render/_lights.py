@@ -150,16 +150,17 @@ def _sample_env(lf, env, rows, cols, e, u1, u2):
 
 @inline_kernel
 def emits_towards(f, nx, ny, nz, dx, dy, dz):
-    """Whether an area light with outward (geometric) normal n emits along direction d."""
+    """Whether an area light with outward (geometric) normal n emits along direction d (of any
+    length: only its sign against n counts)."""
     c = nx * dx + ny * dy + nz * dz
     sides = int(f[1])
     return (c > 0.0 and (sides & FRONT) != 0) or (c < 0.0 and (sides & BACK) != 0)
 
 
 @inline_kernel
-def area_pdf(prim, sph, f, px, py, pz, dx, dy, dz, dist, nx, ny, nz):
-    """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point at
-    ``dist`` along the unit direction d (on the light, outward normal n)."""
+def area_pdf(prim, sph, f, px, py, pz, vx, vy, vz, dist, nx, ny, nz):
+    """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point
+    p + v on the light (|v| = dist, outward normal n)."""
     i = int(f[0])
     if prim[i, 0] == SPHERE:
         s = sph[prim[i, 1]]
@@ -169,10 +170,12 @@ def area_pdf(prim, sph, f, px, py, pz, dx, dy, dz, dist, nx, ny, nz):
             # uniform over the cone of the sphere's silhouette (PBR 4th ed. 6.2.4)
             cos_max = math.sqrt(max(0.0, 1.0 - r * r / dc2))
             return 1.0 / (2.0 * math.pi * (1.0 - cos_max))
-    cos_l = abs(nx * dx + ny * dy + nz * dz)
-    if cos_l <= 0.0:
+    # uniform by area: dA = r^2 / cos d(omega), with cos = |n . v| / r: the unnormalised v
+    # spares next-event estimation a division on its longest chain of waits (perf)
+    nv = abs(nx * vx + ny * vy + nz * vz)
+    if nv <= 0.0:
         return 0.0
-    return dist * dist / (f[2] * cos_l)  # uniform by area: dA = r^2 / cos d(omega)
+    return dist * dist * dist / (f[2] * nv)
 
 
 @inline_kernel
@@ -250,16 +253,18 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
         return -f[0], -f[1], -f[2], math.inf, math.inf
     if t == AREA:
         qx, qy, qz, nx, ny, nz = _sample_area(prim, sph, quad, f, px, py, pz, u1, u2)
-        dx, dy, dz = qx - px, qy - py, qz - pz
-        r = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if r <= 0.0:
+        vx, vy, vz = qx - px, qy - py, qz - pz
+        r2 = vx * vx + vy * vy + vz * vz
+        if r2 <= 0.0:
             return 0.0, 0.0, 1.0, 0.0, 0.0
-        dx, dy, dz = dx / r, dy / r, dz / r
-        if not emits_towards(f, nx, ny, nz, -dx, -dy, -dz):
+        r = math.sqrt(r2)
+        dx, dy, dz = vx / r, vy / r, vz / r
+        # facing and density from v itself, so that they need not wait for the division
+        if not emits_towards(f, nx, ny, nz, -vx, -vy, -vz):
             return dx, dy, dz, r, 0.0
         for c in range(3):
             li[c] = f[3 + c]
-        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, dx, dy, dz, r, nx, ny, nz)
+        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, vx, vy, vz, r, nx, ny, nz)
     dx, dy, dz, pdf = _sample_env(lf, env, rows, cols, l, u1, u2)
     li[0], li[1], li[2] = env_radiance(lf, env, l, dx, dy, dz)
     return dx, dy, dz, math.inf, pdf
