@@ -138,15 +138,15 @@ def _power(a, b):
 
 #: rows of ``fl``: the ray, its hit distance, throughput, radiance, the density of the last
 #: bounce; the vertex's geometric and shading normals, tangent and bitangent, the ray origin
-#: off the surface; the light sample's radiance, density and light probability, the vertex's
-#: uniform numbers (see :func:`_draw`), and the first-hit layers
+#: off the surface; the light sample's radiance, density and light probability, and the
+#: vertex's uniform numbers (see :func:`_draw`)
 (OX, OY, OZ, DX, DY, DZ, T, THR, RAD, PREV, NX, NY, NZ, SX, SY, SZ, AX, AY, AZ, BX, BY, BZ,
- QX, QY, QZ, LI, LPDF, LPICK, U, AOV) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17, 18, 19,
-                                         20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 32, 33, 34, 39)
+ QX, QY, QZ, LI, LPDF, LPICK, U) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17, 18, 19, 20,
+                                    21, 22, 23, 24, 25, 26, 27, 28, 29, 32, 33, 34)
 #: the vertex's uniform numbers, in rows U + k: the light, a point on it, the BSDF sample's pair,
 #: Russian roulette
 PICK, ON_LIGHT, BSDF_U1, BSDF_U2, ROULETTE = range(5)
-FLOAT_ROWS = AOV + 6
+FLOAT_ROWS = U + 5
 #: rows of ``il``: the path is in flight, its pixel, depth (segments traced), whether the last
 #: bounce was specular, the slot its ray hit, its shading batch (its material's ``SHARE``), the
 #: lane of ``sh`` that holds its shadow ray (-1: none), what the shadow ray in each lane of
@@ -196,9 +196,6 @@ def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
                                                                                    y, state, j)
     for c in range(3):
         fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
-    if opts[LAYERS]:
-        for c in range(6):
-            fl[AOV + c, j] = 0.0
     fl[PREV, j] = 0.0
     il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
     il[SPECULAR, j], il[END, j] = 1, 0
@@ -221,9 +218,9 @@ def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state,
     x, y, s = k % tw, k // tw, start // npix
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
-            _bounce(opts, mis, layers, fl, il, sh, q, f, j)
+            _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j)
         if il[ALIVE, j] and il[END, j]:
-            _settle(layers, fl, il, acc, acc2, aov_acc, j)
+            _settle(layers, fl, il, acc, acc2, j)
         if not il[ALIVE, j] and start < total:
             _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, state, j)
             start += 1
@@ -384,10 +381,11 @@ def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f,
 
 
 @inline_kernel
-def _bounce(opts, mis, layers, fl, il, sh, q, f, j):
+def _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j):
     """Path j adds its light sample where the shadow ray got through, then turns into its
     sampled direction, or ends (END) where there is none, below the surface, or by Russian
-    roulette; at its first vertex it records the first-hit layers if ``layers``."""
+    roulette; at its first vertex it adds the first-hit layers to its pixel's sums if
+    ``layers`` (at once: carrying them in rows to the path's end cost more)."""
     # a select, not a branch (see _lit): an unlit lane's numbers are stale, and whatever they
     # make is dropped
     lit = _lit(il, sh, j)
@@ -400,9 +398,10 @@ def _bounce(opts, mis, layers, fl, il, sh, q, f, j):
         fl[RAD + c, j] += light if lit else 0.0
     lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
     if layers and il[DEPTH_, j] == 0:
+        x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
         for c in range(3):
-            fl[AOV + c, j] = f[1, j, c] if pdf != 0.0 else 0.0
-        fl[AOV + 3, j], fl[AOV + 4, j], fl[AOV + 5, j] = fl[SX, j], fl[SY, j], fl[SZ, j]
+            aov_acc[y, x, c] += f[1, j, c] if pdf != 0.0 else 0.0
+            aov_acc[y, x, 3 + c] += fl[SX + c, j]
     if pdf == 0.0:
         il[END, j] = 1
         return
@@ -427,8 +426,8 @@ def _bounce(opts, mis, layers, fl, il, sh, q, f, j):
 
 
 @inline_kernel
-def _settle(layers, fl, il, acc, acc2, aov_acc, j):
-    """Add the ended path j to its pixel's running sums (the layers' too, if ``layers``) and
+def _settle(layers, fl, il, acc, acc2, j):
+    """Add the ended path j to its pixel's running sums (and its square's, if ``layers``) and
     free its lane."""
     x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
     for c in range(3):
@@ -438,9 +437,6 @@ def _settle(layers, fl, il, acc, acc2, aov_acc, j):
         acc[y, x, c] += r
         if layers:
             acc2[y, x, c] += r * r
-    if layers:
-        for c in range(6):
-            aov_acc[y, x, c] += fl[AOV + c, j]
     il[ALIVE, j] = 0
 
 
