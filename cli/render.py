@@ -83,11 +83,12 @@ def render(args, out):
     """Render a material; write the image (and preview) atomically."""
     from brdf import render as R
     _refuse_existing(args, args.output, args.preview)
+    png = args.output.lower().endswith(".png")
     result = R.render(_scene(args.scene, load_subject(args.material)), spp=args.spp, size=args.size,
                       seed=args.seed, max_depth=args.max_depth, strategy=args.strategy,
                       threads=args.threads, progress=_progress(out),
-                      layers=args.layers and not args.output.lower().endswith(".png"))
-    if args.output.lower().endswith(".png"):
+                      layers=args.layers and not png)  # a PNG has no layers to write
+    if png:
         result.preview(args.output, args.exposure, force=args.force)
     else:
         result.save(args.output, force=args.force)

@@ -490,9 +490,8 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
     if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov_acc``
     (h, w, 6). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
     by :func:`trace_tile` in a packet of paths; a tile's pixels are its own, so the sums do not
-    depend on who traced it.
-    The scene's tuples are unpacked here, once (see :mod:`._intersect` on why the kernels take
-    plain arrays)."""
+    depend on who traced it. The scene's tuples are unpacked here, once (see :mod:`._intersect`
+    on why the kernels take plain arrays)."""
     prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
     mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
     ltype, lf, pmf, gonio, env, rows, cols, env_light = lights
