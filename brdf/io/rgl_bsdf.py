@@ -27,7 +27,8 @@ phi_i for isotropic materials. The sample stored at s is f_r cos(theta_o) divide
 of wo, which is D(h) / (4 sigma(wi)) (the visible NDF <wi.h> D(h) / sigma(wi) times the
 reflection Jacobian 1 / (4 wi.h), Walter et al. 2007 eq. 14), so ``jacobian = 1`` files give
 f_r cos(theta_o) = sample(s) D(h) / (4 sigma(wi)). :class:`RglTable` evaluates f_r itself (no
-cosine), dividing by cos(theta_o).
+cosine) from the measured f_r cos(theta_o) of both orders (wi, wo) and (wo, wi), so that it
+stays reciprocal and finite up to the horizon (see :meth:`RglTable.eval`).
 
 The format is read-only here (there is no ``write``): tables of other origins cannot be
 re-parameterised without the material's NDF, so the registry reports "format rgl-bsdf is
@@ -391,9 +392,14 @@ class RglTable(Table):
     -----
     The table's samples are the T x n x n stored points: wi at each theta_i (azimuth phi_i), wo
     the forward VNDF warp of node (j, i) / (n - 1) of the unit square, and values the samples
-    converted to f_r in 1/sr exactly as :meth:`eval` converts them, never clipped. Points whose
-    wo falls below the horizon, or on it within float32 rounding, are left out
+    converted to f_r in 1/sr exactly as :meth:`eval_one_sided` converts them, never clipped.
+    Points whose wo falls below the horizon, or on it within float32 rounding, are left out
     (``metadata["horizon_samples_left_out"]``).
+
+    The measured elevation range is theta in [0, ``valid_theta``], ``valid_theta`` the largest
+    incident angle of the file below 90 degrees (``metadata["valid_theta_deg"]``): a slice at
+    90 degrees cannot be measured (no irradiance reaches the sample there) and only serves the
+    interpolation.
     """
 
     format = FORMAT
@@ -415,9 +421,13 @@ class RglTable(Table):
                              f"{self._stored.shape} and {self._pdf.shape}")
         self.jacobian = bool(jacobian)
         self.clip = bool(clip)
+        measured = self._theta[self._theta < _HALF_PI - _FLOAT32_SLACK]
+        self.valid_theta = float(measured[-1] if len(measured) else self._theta[0])
+        self._cos_valid = math.cos(self.valid_theta)
         wi, wo, f = self._node_samples()
         info = dict(metadata or {})
         info["horizon_samples_left_out"] = int(self._stored[:, 0].size - len(wi))
+        info["valid_theta_deg"] = math.degrees(self.valid_theta)
         super().__init__(wi, wo, f, wavelengths=wavelengths, isotropic=True, metadata=info,
                          source=source, name=name)
 
@@ -444,28 +454,35 @@ class RglTable(Table):
     def _scale(self, wi, wo):
         """Factor from stored sample to f_r: D(h) / (4 sigma(wi)) / cos(theta_o), (n, 1).
 
-        The lookup of a table whose samples are all 1 gives it, computed exactly as
-        :meth:`eval` computes it."""
+        The one-sided lookup of a table whose samples are all 1 gives it, computed exactly as
+        :meth:`eval_one_sided` computes it."""
         wi, wo, _ = flat_pairs(wi, wo)  # the arrays eval passes: one compiled specialisation
         out = np.empty((len(wi), 1))
         _eval_kernel(wi, wo, self._theta, self._pdf, self._cond, self._marg,
                      np.ones((len(self._theta), 1, 2, 2)), self._ndf, self._sigma_table,
-                     self.jacobian, False, out)
+                     self.jacobian, False, False, self._cos_valid, out,
+                     np.empty(len(wi), dtype=np.bool_))
         return out
 
     # -- evaluation ------------------------------------------------------------------------------
     def eval(self, wi, wo, method="linear", clip=None):
-        """BRDF f_r ``(..., C)`` in 1/sr (no cosine); 0 when either direction is below the
-        horizon.
+        """BRDF f_r ``(..., C)`` in 1/sr (no cosine), reciprocal and finite up to the horizon;
+        0 when either direction is below it.
 
-        wo is mapped back to its point s of the unit square by inverting the VNDF warp at
-        theta_i (the CDF tables of the two nearest incident angles interpolated linearly), the
-        stored samples are interpolated bilinearly at s (and linearly in theta_i), multiplied by
-        D(h) / (4 sigma(wi)) when the file's ``jacobian`` flag is set, and divided by
-        cos(theta_o). Not symmetric in (wi, wo): the measurement is one-sided. The stored
-        f_r cos(theta_o) need not vanish at the horizon, so f_r grows like 1 / cos(theta_o)
-        in the last degree (paper_white at 30 degrees incidence: 0.6 1/sr at theta_o = 89
-        degrees, 5 at 89.9, 53 at 89.99).
+        The file measures g = f_r cos(theta_o) (:meth:`eval_one_sided` divides it by
+        cos(theta_o), as the reference reader does, which diverges at the horizon where g need
+        not vanish). ``eval`` combines the measurements of both orders,
+
+            f_r = (g(wi, wo) + g(wo, wi)) / max(cos theta_i + cos theta_o, cos valid_theta),
+
+        the cosine-weighted mean of the two one-sided values (each weighted by the cosine it
+        is divided by; the weighted least-squares f_r for errors in g of variance proportional
+        to g's cosine). Where one direction nears the horizon its ill-conditioned one-sided
+        value loses its weight and f_r tends to the other order's measurement; only where both
+        directions lie beyond the measured elevation range does the denominator stop at
+        cos(valid_theta), so f_r stays bounded by (g + g) / cos(valid_theta) there. Inside
+        the range f_r differs from the one-sided value by the file's own asymmetry (median
+        0.2 % for paper_white below 60 degrees).
 
         Parameters
         ----------
@@ -474,20 +491,33 @@ class RglTable(Table):
         clip : bool, optional
             Clip negative interpolated samples to 0 (default: the table's ``clip``).
         """
+        return self._lookup(wi, wo, method, self.clip if clip is None else bool(clip), True)[0]
+
+    def eval_one_sided(self, wi, wo, method="linear", clip=False):
+        """``(values (..., C), inside (...))``: the measurement at (wi, wo) as the reference
+        reader evaluates it, unclipped by default.
+
+        wo is mapped back to its point s of the unit square by inverting the VNDF warp at
+        theta_i (the CDF tables of the two nearest incident angles interpolated linearly), the
+        stored samples are interpolated bilinearly at s (and linearly in theta_i), multiplied by
+        D(h) / (4 sigma(wi)) when the file's ``jacobian`` flag is set, and divided by
+        cos(theta_o) (Mitsuba 3's ``measured`` plugin returns this times cos(theta_o)). It
+        grows like 1 / cos(theta_o) in the last degree (paper_white at 30 degrees incidence:
+        0.55 1/sr at theta_o = 89 degrees, 3.0 at 89.9, 28 at 89.99). ``inside`` is True where
+        both directions lie within the measured elevation range (``valid_theta``).
+        """
+        return self._lookup(wi, wo, method, bool(clip), False)
+
+    def _lookup(self, wi, wo, method, clip, reciprocal):
         if method != "linear":
             raise InputError(f"method must be 'linear' for an RGL table, got {method!r}")
         wi, wo, shape = flat_pairs(wi, wo)
         out = np.empty((len(wi), self.channels))
+        inside = np.empty(len(wi), dtype=np.bool_)
         _eval_kernel(wi, wo, self._theta, self._pdf, self._cond, self._marg, self._stored,
-                     self._ndf, self._sigma_table, self.jacobian,
-                     self.clip if clip is None else bool(clip), out)
-        return out.reshape(shape + (self.channels,))
-
-    def eval_one_sided(self, wi, wo, method="linear"):
-        """``(values (n, C), inside (n,))``: :meth:`eval` (already one-sided); every point is
-        inside the parameterisation's domain."""
-        wi, wo, _ = flat_pairs(wi, wo)
-        return self.eval(wi, wo, method), np.ones(len(wi), dtype=bool)
+                     self._ndf, self._sigma_table, self.jacobian, clip, reciprocal,
+                     self._cos_valid, out, inside)
+        return out.reshape(shape + (self.channels,)), inside.reshape(shape)
 
     def unit_square(self, wi, wo):
         """Point s ``(..., 2)`` of the unit square whose forward warp gives ``wo`` from ``wi``
@@ -649,27 +679,54 @@ def _unit_square_kernel(wi, wo, theta_nodes, pdf, cond, marg, out):
         out[n, 0], out[n, 1] = _invert(pdf, cond, marg, k, w, uh, vh)
 
 
+@inline_kernel
+def _add_measured(wi, wo, theta_nodes, pdf, cond, marg, stored, ndf, sigma, jacobian, clip,
+                  weight, out, n):
+    """Add ``weight`` times the measured f_r cos(theta_o) of the pair (wi, wo), both above the
+    horizon, to ``out[n, :]``: the stored samples at the inverted point, linear in theta_i,
+    times D(h) / (4 sigma(wi)) when ``jacobian`` is set (module notes)."""
+    theta_i, phi_i, uh, vh, _ = _angles(wi, wo)
+    k, w = _slice_interval(theta_nodes, theta_i)
+    sx, sy = _invert(pdf, cond, marg, k, w, uh, vh)
+    scale = weight
+    if jacobian:
+        # f_r cos(theta_o) = sample D(h) / (4 sigma(wi))  (density of wo, module notes)
+        ui = math.sqrt(theta_i / _HALF_PI)
+        vi = (phi_i + math.pi) / (2.0 * math.pi)
+        scale *= _bilinear(ndf, uh, vh) / (4.0 * _bilinear(sigma, ui, vi))
+    for c in range(stored.shape[1]):
+        value = ((1.0 - w) * _bilinear(stored[k, c], sx, sy)
+                 + w * _bilinear(stored[k + 1, c], sx, sy))
+        if clip and value < 0.0:
+            value = 0.0
+        out[n, c] += value * scale
+
+
 @parallel_kernel
 def _eval_kernel(wi, wo, theta_nodes, pdf, cond, marg, stored, ndf, sigma, jacobian, clip,
-                 out):
-    """f_r of each pair into ``out`` (n, C): stored samples at the inverted point, times
-    D(h) / (4 sigma(wi)) (``jacobian``), over cos(theta_o); 0 below the horizon."""
+                 reciprocal, cos_valid, out, inside):
+    """f_r of each pair into ``out`` (n, C), 0 below the horizon; ``inside[n]`` says whether
+    both directions lie within the measured elevation range (cos theta >= ``cos_valid``).
+
+    One-sided (``reciprocal`` False): the measured f_r cos(theta_o) over cos(theta_o), the
+    reference reader's value. Reciprocal: (g(wi, wo) + g(wo, wi)) / max(cos theta_i +
+    cos theta_o, cos_valid) with g the measured f_r cos(theta_o) of each order (RglTable.eval).
+    """
     for n in prange(wi.shape[0]):
+        out[n, :] = 0.0
         if wi[n, 2] <= 0.0 or wo[n, 2] <= 0.0:
-            out[n, :] = 0.0
+            inside[n] = False
             continue
-        theta_i, phi_i, uh, vh, cos_o = _angles(wi[n], wo[n])
-        k, w = _slice_interval(theta_nodes, theta_i)
-        sx, sy = _invert(pdf, cond, marg, k, w, uh, vh)
-        scale = 1.0 / cos_o
-        if jacobian:
-            # f_r cos(theta_o) = sample D(h) / (4 sigma(wi))  (density of wo, module notes)
-            ui = math.sqrt(theta_i / _HALF_PI)
-            vi = (phi_i + math.pi) / (2.0 * math.pi)
-            scale *= _bilinear(ndf, uh, vh) / (4.0 * _bilinear(sigma, ui, vi))
-        for c in range(stored.shape[1]):
-            value = ((1.0 - w) * _bilinear(stored[k, c], sx, sy)
-                     + w * _bilinear(stored[k + 1, c], sx, sy))
-            if clip and value < 0.0:
-                value = 0.0
-            out[n, c] = value * scale
+        cos_i = wi[n, 2] / math.sqrt(wi[n, 0] ** 2 + wi[n, 1] ** 2 + wi[n, 2] ** 2)
+        cos_o = wo[n, 2] / math.sqrt(wo[n, 0] ** 2 + wo[n, 1] ** 2 + wo[n, 2] ** 2)
+        inside[n] = min(cos_i, cos_o) >= cos_valid
+        if reciprocal:
+            # cosine-weighted mean of the two one-sided values (RglTable.eval)
+            weight = 1.0 / max(cos_i + cos_o, cos_valid)
+            _add_measured(wi[n], wo[n], theta_nodes, pdf, cond, marg, stored, ndf, sigma,
+                          jacobian, clip, weight, out, n)
+            _add_measured(wo[n], wi[n], theta_nodes, pdf, cond, marg, stored, ndf, sigma,
+                          jacobian, clip, weight, out, n)
+        else:
+            _add_measured(wi[n], wo[n], theta_nodes, pdf, cond, marg, stored, ndf, sigma,
+                          jacobian, clip, 1.0 / cos_o, out, n)
