@@ -61,6 +61,37 @@ TABLE_RECIPROCITY_TOL = 0.1
 TABLE_RECIPROCITY_FLOOR = 0.01
 #: Two measured directions closer than this (degrees, on the sphere) count as the same.
 TABLE_PAIR_DEG = 1.0
+#: Measured tables: a sample and the measured sample nearest to its swap are grossly asymmetric,
+#: and fail the check whatever the 95th percentile, when their relative difference exceeds
+#: this (they differ by more than a factor of 10: a missing or extra cosine reaches that beyond
+#: 84 degrees) and their absolute difference exceeds :data:`TABLE_GROSS_MEAN` times the
+#: channel's mean value. Noise at an instrument's floor differs by large factors but little in
+#: absolute terms (Cornell's paints hold zeros at 80 degrees incidence beside 0.014 1/sr a
+#: degree away, a quarter of the channel mean); a broken region of a table differs by both.
+#: Measured samples are compared, not the interpolant: linear interpolation across Cornell's
+#: 10-degree incidence steps smears a specular peak into its neighbours (0.55 1/sr against
+#: measured 0.034 on both sides), an interpolation error rather than an asymmetry.
+TABLE_GROSS_RELATIVE = 0.9
+#: See :data:`TABLE_GROSS_RELATIVE`.
+TABLE_GROSS_MEAN = 1.0
+#: Measured tables: the lookup at a swap is gross too when it leaves the range of the measured
+#: values by more than this factor (interpolating measured values cannot; a lookup that divides
+#: by a vanishing cosine does: 953,474 1/sr against at most 2.85 measured, paper_white before
+#: its eval was made finite).
+TABLE_GROSS_RANGE = 2.0
+#: Measured tables: polar angles (degrees) at which the energy check probes the albedo towards
+#: the horizon, beyond any measured incidence. An integrand bounded at the horizon gives an
+#: albedo that is continuous there; one that grows like 1/cos(theta) (the divided-out cosine
+#: of a one-sided lookup) gives an albedo growing without bound, which no incidence grid
+#: stopping at 89.9 degrees sees.
+HORIZON_PROBE_DEG = (90.0 - 1e-2, 90.0 - 1e-4, 90.0 - 1e-6)
+#: The probe fails when the albedo closest to the horizon exceeds the one at the first probe
+#: angle by more than this factor (plus the energy tolerance).
+HORIZON_GROWTH = 2.0
+#: Measured tables: a quadrature error estimate above this (albedo units) at the largest
+#: albedo means the integral was not resolved, and ``albedo <= 1 + error`` would be vacuous:
+#: the energy check fails instead (the real tables' estimates stay below 0.02).
+ENERGY_UNRESOLVED = 0.1
 #: Most grazing polar angle tested, in degrees (exactly 90 puts a direction in the horizon).
 GRAZING_DEG = 89.9
 
@@ -423,58 +454,98 @@ def table_reciprocity(table, tol=TABLE_RECIPROCITY_TOL, pair_deg=TABLE_PAIR_DEG)
 
     For every sample (wi, wo) whose swap (wo, wi) lies within ``pair_deg`` degrees of a
     measured sample, the table's one-sided interpolant at (wo, wi) is compared with the
-    sample; the check passes when the 95th percentile of the relative difference is within
-    ``tol`` (the worst pair is reported too: single pairs carry the measurement noise). The
-    relative difference is taken against at least :data:`TABLE_RECIPROCITY_FLOOR` times the
-    channel's mean value.
-    Layouts that store one value per reciprocal pair (MERL) pass by construction.
+    sample; pairs where the interpolant is outside the measured region (``inside`` False:
+    beyond the hull, or an RGL table's measured elevation range) are left out. The relative
+    difference is taken against at least :data:`TABLE_RECIPROCITY_FLOOR` times the channel's
+    mean value. The check passes when the 95th percentile of the relative difference is
+    within ``tol`` and no pair is grossly asymmetric (:data:`TABLE_GROSS_RELATIVE` and
+    :data:`TABLE_GROSS_MEAN` for the sample against the measured sample nearest to the swap,
+    :data:`TABLE_GROSS_RANGE` for the lookup at the swap). Layouts that store one value per
+    reciprocal pair (MERL) pass by construction.
+
+    The result's ``data`` holds ``pairs``, ``median``, ``p95``, ``gross`` (the number of grossly
+    asymmetric pair-channels), ``excluded`` (pairs outside the measured region), ``floor`` and
+    ``worst_pair``: ``wi`` and ``wo`` (theta, phi in degrees) of the worst sample, its value
+    ``f_wi_wo``, the table at the swap ``f_wo_wi``, the measured sample nearest to the swap
+    ``nearest_swapped`` and the ``channel``; ``where`` gives the same angles. The worst pair is
+    the gross one with the largest difference when there is one.
     """
     from scipy.spatial import cKDTree
+    limit = f"p95 <= {tol:g}, no gross pair"
     if getattr(table, "reciprocal_by_layout", False):
-        return CheckResult("reciprocity", True, 0.0, {}, tol, f"p95 <= {tol:g}",
+        return CheckResult("reciprocity", True, 0.0, {}, tol, limit,
                            "the layout stores one value per reciprocal pair (reciprocal by "
                            "construction)", {"pairs": 0})
     wi, wo = np.asarray(table.wi), np.asarray(table.wo)
     values = np.asarray(table.values, dtype=float)
     # in the table's own coordinates an isotropic table's swapped pair is found whatever
     # azimuth it was measured at
-    distance, _ = cKDTree(table.coordinates(wi, wo)).query(
+    distance, nearest = cKDTree(table.coordinates(wi, wo)).query(
         table.coordinates(wo, wi), distance_upper_bound=math.radians(pair_deg))
     paired = np.isfinite(distance) & ~np.all(np.isclose(wi, wo, atol=1e-12), axis=1)
     if not paired.any():
-        return CheckResult("reciprocity", None, math.nan, {}, tol, f"p95 <= {tol:g}",
+        return CheckResult("reciprocity", None, math.nan, {}, tol, limit,
                            f"not testable: no sample's swapped pair was measured within "
                            f"{pair_deg:g} degrees", {"pairs": 0})
     swapped, inside = table.eval_one_sided(wo[paired], wi[paired])
     f = values[paired]
     ok = np.isfinite(f) & inside[:, None]
-    floor = TABLE_RECIPROCITY_FLOOR * np.nanmean(np.abs(values), axis=0)
+    mean = np.nanmean(np.abs(values), axis=0)
+    floor = TABLE_RECIPROCITY_FLOOR * mean
     floor = np.maximum(floor, RECIPROCITY_FLOOR * np.nanmax(np.abs(values), axis=0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        err = np.abs(f - swapped) / np.maximum(np.maximum(np.abs(f), np.abs(swapped)), floor)
+        diff = np.abs(f - swapped)
+        err = diff / np.maximum(np.maximum(np.abs(f), np.abs(swapped)), floor)
     err = np.where(ok, err, np.nan)
+    excluded = int((np.isfinite(f).any(axis=1) & ~inside).sum())
     if not np.isfinite(err).any():
-        return CheckResult("reciprocity", None, math.nan, {}, tol, f"p95 <= {tol:g}",
-                           "not testable: no measured reciprocal pair", {"pairs": 0})
+        return CheckResult("reciprocity", None, math.nan, {}, tol, limit,
+                           "not testable: no measured reciprocal pair", {"pairs": 0,
+                                                                        "excluded": excluded})
+    near = values[nearest[paired]]
+    with np.errstate(invalid="ignore"):
+        near_diff = np.abs(f - near)
+        near_err = near_diff / np.maximum(np.maximum(np.abs(f), np.abs(near)), floor)
+        out_of_range = ~(np.abs(swapped) <= TABLE_GROSS_RANGE * np.nanmax(np.abs(values), axis=0))
+    gross = ok & (((near_err > TABLE_GROSS_RELATIVE) & (near_diff > TABLE_GROSS_MEAN * mean))
+                  | out_of_range)
     p95 = float(np.nanpercentile(err, 95))
     median = float(np.nanmedian(err))
-    k, c = np.unravel_index(np.nanargmax(err), err.shape)
+    # the worst pair: the largest difference among the gross ones, else the largest relative
+    key = (np.where(gross, np.maximum(np.nan_to_num(diff, nan=np.inf), near_diff), -1.0)
+           if gross.any() else np.where(ok, err, -1.0))
+    k, c = np.unravel_index(np.argmax(key), err.shape)
     worst = float(err[k, c])
     rows = np.nonzero(paired)[0]
+    angles = np.asarray(table.angles)[rows]
     n_pairs = int(np.isfinite(err).any(axis=1).sum())
-    detail = (f"{n_pairs} samples with the swapped pair measured (within {pair_deg:g} deg): "
-              f"relative difference median {median:.3g}, p95 {p95:.3g}, worst {worst:.3g} "
-              f"(f = {f[k, c]:.6g}, swapped {swapped[k, c]:.6g} 1/sr)")
-    return CheckResult("reciprocity", p95 <= tol, worst,
-                       _pair_where(np.asarray(table.angles)[rows], k, c), tol,
-                       f"p95 <= {tol:g}", detail,
-                       {"pairs": n_pairs, "median": median, "p95": p95,
-                        "floor": floor.tolist()})
+    n_gross = int(gross.sum())
+    pair = {"wi": {"theta": float(angles[k, 0]), "phi": float(angles[k, 1])},
+            "wo": {"theta": float(angles[k, 2]), "phi": float(angles[k, 3])},
+            "f_wi_wo": float(f[k, c]), "f_wo_wi": float(swapped[k, c]),
+            "nearest_swapped": float(near[k, c]), "channel": int(c)}
+    detail = (f"{n_pairs} samples with the swapped pair measured (within {pair_deg:g} deg"
+              f"{f'; {excluded} outside the measured region left out' if excluded else ''}): "
+              f"relative difference median {median:.3g}, p95 {p95:.3g}; "
+              f"{'gross' if n_gross else 'worst'} pair wi = ({angles[k, 0]:.4g}, "
+              f"{angles[k, 1]:.4g}) deg, wo = ({angles[k, 2]:.4g}, {angles[k, 3]:.4g}) deg, "
+              f"channel {c}: f(wi,wo) = {f[k, c]:.6g}, f(wo,wi) = {swapped[k, c]:.6g} 1/sr "
+              f"(relative {worst:.3g}; nearest swapped sample {near[k, c]:.6g}); {n_gross} "
+              f"grossly asymmetric (against the nearest swapped sample relative > "
+              f"{TABLE_GROSS_RELATIVE:g} and difference > {TABLE_GROSS_MEAN:g} x channel "
+              f"mean, or the lookup beyond {TABLE_GROSS_RANGE:g} x the largest sample)")
+    return CheckResult("reciprocity", p95 <= tol and n_gross == 0, worst,
+                       _pair_where(angles, k, c), tol, limit, detail,
+                       {"pairs": n_pairs, "median": median, "p95": p95, "gross": n_gross,
+                        "excluded": excluded, "floor": floor.tolist(), "worst_pair": pair,
+                        "f_wi_wo": pair["f_wi_wo"], "f_wo_wi": pair["f_wo_wi"]})
 
 
 def _table_energy(table, angles, theta_steps, anisotropic_steps, tol):
     """The energy check over the incident polar angles the table measured (the interpolant is
-    clamped beyond them, so albedos there would repeat the edge)."""
+    clamped beyond them, so albedos there would repeat the edge), a probe of the albedo towards
+    the horizon (:data:`HORIZON_PROBE_DEG`) and a resolved quadrature
+    (:data:`ENERGY_UNRESOLVED`)."""
     if getattr(table, "in_plane", False):
         return CheckResult("energy", None, math.nan, {}, tol, "<= 1",
                            "not testable: an in-plane scan holds no out-of-plane scattering, "
@@ -488,5 +559,21 @@ def _table_energy(table, angles, theta_steps, anisotropic_steps, tol):
     _, phi = incidence_grid(2, 1 if table.isotropic else anisotropic_steps[1])
     result = _energy(table, theta, phi, tol)
     detail = result.detail + f"; theta_i from {low:g} to {high:g} degrees (the measured range)"
-    return CheckResult(result.name, result.passed, result.worst, result.where, result.tolerance,
-                       result.limit, detail, result.data)
+    passed, data = result.passed, dict(result.data)
+    # towards the horizon: the albedo of a bounded integrand levels off
+    probe, _ = (np.asarray(v, dtype=float) for v in table.albedo(
+        _directions(np.asarray(HORIZON_PROBE_DEG)[None, :], phi[:, None]), return_error=True))
+    first, last = probe[:, 0].max(), probe[:, -1].max()
+    data["horizon_albedo"] = {"theta_i": list(HORIZON_PROBE_DEG),
+                              "albedo": probe.max(axis=(0, 2)).tolist()}
+    if not last <= HORIZON_GROWTH * first + tol:
+        passed = False
+        detail += (f"; FAIL: the albedo grows towards the horizon, {first:.6g} at "
+                   f"{HORIZON_PROBE_DEG[0]:g} deg to {last:.6g} at {HORIZON_PROBE_DEG[-1]:.9g} "
+                   f"deg (more than {HORIZON_GROWTH:g}x): the integrand diverges there")
+    if not result.data["quadrature_error"] <= ENERGY_UNRESOLVED:
+        passed = False
+        detail += (f"; FAIL: quadrature error estimate {result.data['quadrature_error']:.3g} "
+                   f"> {ENERGY_UNRESOLVED:g} at the largest albedo: the integral is unresolved")
+    return CheckResult(result.name, passed, result.worst, result.where, result.tolerance,
+                       result.limit, detail, data)
