@@ -223,6 +223,18 @@ class Problem:
             self._needed[p.slots] = True
         self.terms = losses.terms(loss, self.samples, len(self.free))
 
+    def restricted(self, samples):
+        """This problem on other samples (a subsample of its own, :func:`brdf.fitting.starts.
+        subsample`): the same free parameters, bounds and x -> model map; the loss's terms
+        recomputed on ``samples``."""
+        import copy
+        if samples is self.samples:
+            return self
+        other = copy.copy(self)
+        other.samples = samples
+        other.terms = losses.terms(self.loss_name, samples, len(self.free))
+        return other
+
     # -- what is free --------------------------------------------------------------------------
     def _declare(self, model, shared):
         declared = [_Declared(name, l, path, decl, np.asarray(value, dtype=float), None)

@@ -15,7 +15,7 @@ from .._jit import inline_kernel, kernel
 from ..sampling import half_unit, reflect_about, square_to_cosine_hemisphere
 from . import _kinds, lambert
 from ._registry import register
-from .base import Model, Param
+from .base import Model, Param, Start
 from .fresnel import schlick, schlick_d
 
 INV_PI = 1.0 / math.pi
@@ -46,6 +46,8 @@ class AshikhminShirley(Model):
         Param("nv", None, (0.0, 1e5), prior="log", fallback="nu", fit_bounds=(1.0, 1e4),
               doc="Phong exponent along the bitangent y (default: nu, isotropic)"),
     )
+    # rd and rs enter bilinearly (rd (1 - rs) and Schlick's F(rs)): no scale to project out
+    START = Start(shape=("nu", "nv"))
 
 
 # --- kernels (layout: rd[C], rs[C], nu, nv) --------------------------------------------------

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import InputError, ParameterError, SpecError
 from ..geometry import direction_array, flat_pairs
 
-__all__ = ["Param", "Choice", "Nested", "Component", "Model", "Sum", "Compiled", "sample_inputs"]
+__all__ = ["Param", "Choice", "Nested", "Start", "Component", "Model", "Sum", "Compiled", "sample_inputs"]
 
 
 class Param:
@@ -126,6 +126,29 @@ class Nested:
     def describe(self):
         return {"name": self.name, "kind": self.kind, "default": self.default,
                 "choices": self.registry.names(), "doc": self.doc, "aliases": list(self.aliases)}
+
+
+class Start:
+    """What a family tells the fitter's data-driven start (:mod:`brdf.fitting.starts`).
+
+    Parameters
+    ----------
+    scale : tuple of str
+        Parameters f is proportional to, each channel on its own: with the others held, their
+        best values follow from bounded linear least squares (variable projection, Golub &
+        Pereyra 1973). Several names move together as one factor (Lafortune's cx, cy, cz).
+    shape : tuple of str
+        Nonlinear parameters (widths, exponents) searched on a grid over their fit box (log
+        spaced for a log prior): the lobe's angular spread, which the grid must span.
+    power : str or None
+        When f scales as (scale factor)^p with p this parameter (Lafortune's exponent n), the
+        scale parameters are multiplied by k^(1/p) to scale f by k.
+
+    A family that declares nothing keeps its spec values in the start.
+    """
+
+    def __init__(self, scale=(), shape=(), power=None):
+        self.scale, self.shape, self.power = tuple(scale), tuple(shape), power
 
 
 def _fmt(x):
@@ -350,6 +373,8 @@ class Model(Component):
     #: mirror-image incident directions once. Families that depend on x and y only through x^2,
     #: y^2, products wi_x wo_x, wi_y wo_y, or rotation-invariant terms set it.
     mirror_symmetric = False
+    #: How the fitter's data-driven start treats this family (:class:`Start`).
+    START = Start()
 
     # -- composition ---------------------------------------------------------------------------
     def __add__(self, other):

@@ -18,7 +18,7 @@ from .._jit import inline_kernel, kernel
 from ..sampling import cosine_power_pdf, half_unit, reflect_about, square_to_cosine_power
 from . import _kinds
 from ._registry import register
-from .base import Choice, Model, Param
+from .base import Choice, Model, Param, Start
 from .packed import channel_mean
 from .phong import EXPONENT
 
@@ -46,6 +46,7 @@ class BlinnPhong(Model):
               EXPONENT,
               Choice("normalization", "exact", ("exact", "approx"), aliases=("normalisation",),
                      doc="exact (Giesen 2009) or the (n+8)/(8 pi) approximation"))
+    START = Start(scale=("ks",), shape=("n",))  # f = ks N(n) cos^n(theta_h)
 
     @property
     def energy_conserving(self):

@@ -24,7 +24,7 @@ from ..errors import ParameterError
 from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
 from ._registry import register
-from .base import Model, Param
+from .base import Model, Param, Start
 from .packed import channel_mean
 
 #: Cap of the albedo hint: keeps an unnormalised lobe (|s| > 1, large n) from turning the
@@ -59,6 +59,8 @@ class Lafortune(Model):
         Param("n", 20.0, (0.0, 1e5), per_channel=True, prior="log", aliases=("exponent",),
               fit_bounds=(1e-2, 1e4), doc="exponent (larger is a narrower lobe)"),
     )
+    # f = (C . w)^n: multiplying C by k^(1/n) multiplies f by k (eq. 4)
+    START = Start(scale=("cx", "cy", "cz"), shape=("n",), power="n")
 
     @property
     def anisotropic(self):

@@ -6,7 +6,7 @@ from .._jit import inline_kernel, kernel
 from ..sampling import square_to_cosine_hemisphere
 from . import _kinds
 from ._registry import register
-from .base import Model, Param
+from .base import Model, Param, Start
 from .packed import channel_mean
 
 INV_PI = 1.0 / math.pi
@@ -24,6 +24,7 @@ class Lambert(Model):
     mirror_symmetric = True  # f is a constant
     PARAMS = (Param("albedo", 0.5, (0.0, 1.0), per_channel=True, aliases=("rho", "rho_d", "kd"),
                     doc="directional-hemispherical reflectance", fit_bounds=(0.0, 1.0)),)
+    START = Start(scale=("albedo",))  # f = albedo / pi
 
 
 @kernel

@@ -16,7 +16,7 @@ from .._jit import inline_kernel, kernel
 from ..sampling import reflect_about, sincos_turn
 from . import _kinds
 from ._registry import FRESNEL, register
-from .base import Choice, Model, Nested, Param
+from .base import Choice, Model, Nested, Param, Start
 from .fresnel import NONE, fresnel, fresnel_d
 
 GGX, BECKMANN = 0, 1
@@ -45,6 +45,7 @@ class Microfacet(Model):
                doc="Smith masking-shadowing: G1(wi) G1(wo), or height-correlated"),
         Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_d)"),
     )
+    START = Start(scale=("ks",), shape=("alpha", "alpha_y"))  # f = ks F D G2 / (4 cos cos)
 
 
 @register

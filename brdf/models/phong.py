@@ -22,7 +22,7 @@ from .._jit import inline_kernel, kernel
 from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
 from ._registry import register
-from .base import Model, Param
+from .base import Model, Param, Start
 from .packed import channel_mean
 
 ORIGINAL, MODIFIED = 0, 1
@@ -55,6 +55,7 @@ class Phong(Model):
     PARAMS = (Param("ks", 1.0, (0.0, math.inf), per_channel=True, aliases=("rho_s",),
                     doc="specular scale", fit_bounds=(0.0, 1.0)),
               EXPONENT)
+    START = Start(scale=("ks",), shape=("n",))  # f = ks N(n) cos^n(alpha)
 
 
 @register
@@ -74,6 +75,7 @@ class ModifiedPhong(Model):
     PARAMS = (Param("ks", 1.0, (0.0, 1.0), per_channel=True, aliases=("rho_s",),
                     doc="specular albedo at normal incidence", fit_bounds=(0.0, 1.0)),
               EXPONENT)
+    START = Start(scale=("ks",), shape=("n",))  # f = ks N(n) cos^n(alpha)
 
 
 # --- lobe kernels (layout: ks[C], n) ---------------------------------------------------------
