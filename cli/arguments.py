@@ -66,6 +66,18 @@ def seed(text):
     return value
 
 
+def starts(text):
+    """A number of fit starts: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1 (local runs of the fit), "
+                                          f"got {text!r}")
+    return value
+
+
 #: brdf.fitting.mcmc.MOVES, named here so that building the parser imports no numpy
 MOVES = ("de", "stretch")
 

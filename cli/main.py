@@ -182,9 +182,10 @@ def _fit_options(p):
                    help="local: LD_LBFGS, LD_SLSQP, LN_BOBYQA, LN_NELDERMEAD, LN_COBYLA; "
                         "global (then polished): GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL "
                         "(default: LD_LBFGS)")
-    p.add_argument("--starts", type=int, default=1, metavar="N",
-                   help="local optimizers: N runs, from the spec and N-1 seeded random points "
-                        "(default: 1)")
+    p.add_argument("--starts", type=arguments.starts, default=None, metavar="N",
+                   help="local optimizers: N runs, from the data-driven start, the spec's "
+                        "values and the best seeded Sobol points of the box; 1: one run from "
+                        "the better of the first two (default: 8, brdf.fitting.DEFAULT_STARTS)")
     p.add_argument("--energy-constraint", action="store_true",
                    help="constrain the directional albedo to at most 1 (cheapest with "
                         "--optimizer LD_SLSQP)")

@@ -235,7 +235,7 @@ def _write_summary(result, outdir):
 
 
 def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progress=None,
-          loss="cosine-l2", optimizer="LD_LBFGS", starts=1, energy_constraint=False,
+          loss="cosine-l2", optimizer="LD_LBFGS", starts=None, energy_constraint=False,
           cutoff=80.0, shared=(), fix=None, bounds=None, seed=0, max_evals=2000):
     """Fit ``spec`` to every input file and write one report per file plus a summary.
 
@@ -257,7 +257,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
     progress : bool, optional
         Progress bar over files on stderr (default: when stderr is a terminal).
     loss, optimizer, starts, energy_constraint, cutoff, shared, fix, bounds, seed, max_evals
-        As for :func:`brdf.fit`, the same for every input.
+        As for :func:`brdf.fit` (the same default starts), the same for every input.
 
     Returns
     -------
@@ -269,7 +269,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
     from .nlopt_fit import _validate, DEFAULT_TOL
     spec = str(parse(spec))
     losses.check_loss(loss)
-    _validate(optimizer, starts, seed, max_evals, DEFAULT_TOL)
+    starts = _validate(optimizer, starts, seed, max_evals, DEFAULT_TOL)
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
     paths = _inputs(inputs)

@@ -1,7 +1,8 @@
 """Point estimates with nlopt: ``brdf.fit(data, spec, ...) -> FitResult``.
 
-Local optimizers run from the spec's parameter values and, with ``starts > 1``, from seeded
-random points of the box too (the best is kept). Global optimizers search the whole box, then a
+Local optimizers run from several starts by default (:data:`DEFAULT_STARTS`): a data-driven
+start computed from the table (:mod:`brdf.fitting.starts`), the spec's values and the best
+points of a seeded Sobol design of the box; the best end is kept and every run is reported. Global optimizers search the whole box, then a
 local optimizer polishes their best point, so that the result carries a convergence verdict
 (a global search stops only at its evaluation budget). The energy constraint keeps the
 directional albedo at or below 1 at a set of incidence angles, as nlopt inequality constraints:
@@ -29,7 +30,7 @@ from .mixed_problem import problem_for
 from .report import SCHEMA
 
 __all__ = ["fit", "FitResult", "OPTIMIZERS", "ENERGY_THETA", "ENERGY_PHI", "DEFAULT_MAX_EVALS",
-           "DEFAULT_TOL", "energy_angles"]
+           "DEFAULT_TOL", "DEFAULT_STARTS", "energy_angles"]
 
 #: Optimizers by name: ``(nlopt algorithm, kind)`` with kind ``local-gradient``,
 #: ``local-free`` or ``global``.
@@ -71,6 +72,20 @@ FEASIBLE_TOL = 1e-6
 DEFAULT_MAX_EVALS = 2000
 #: Relative tolerance on the loss (nlopt ftol_rel); x stops at its square root (xtol_rel).
 DEFAULT_TOL = 1e-10
+#: Local runs of a default fit: the data-driven start, the spec's values and the best Sobol
+#: points of the screening (benchmarks/bench_fit_robustness.py measures what this buys).
+DEFAULT_STARTS = 8
+#: Sobol points of the box whose loss is screened (on the start subsample) for the starts.
+SCREEN_POINTS = 256
+#: Points per compiled pass of the screening (the samples are read once per pass).
+SCREEN_BATCH = 32
+#: Two run ends are different optima when a coordinate of x (log for log-scaled parameters)
+#: differs by more than this fraction of its box width.
+MODE_SEPARATION = 0.05
+#: A different optimum within this relative distance of the best loss makes a fit multimodal.
+MULTIMODAL_GAP = 0.05
+#: Ends polished on all the samples of a large table: the best and distinct near-best ones.
+MODE_POLISHES = 2
 _CONVERGED = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED")
 _STATUS = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED", "MAXEVAL_REACHED",
            "MAXTIME_REACHED", "FAILURE", "INVALID_ARGS", "OUT_OF_MEMORY", "ROUNDOFF_LIMITED",
@@ -105,7 +120,9 @@ class FitResult:
     bounds : dict
         ``{free name: [lower, upper]}``.
     runs : tuple of dict
-        Each start or stage: optimizer, status, loss, evaluations, feasibility.
+        Each start or stage: run (its label), optimizer, status, loss, evaluations,
+        feasibility; local runs also ``start`` and ``end`` (``{free name: value}``) and
+        ``samples`` (how many it was scored on: the start subsample or all of them).
     data : dict
         Samples used and the weighting (:meth:`brdf.fitting.losses.Samples.describe`).
     energy : dict
@@ -117,8 +134,13 @@ class FitResult:
         Input (path, SHA-256), spec, seed, options, library versions.
     timing : dict
         Wall times in seconds: ``total_s``; ``prepare_s`` (samples, weights, loss terms);
-        ``optimize_s`` (the nlopt runs); ``finish_s`` (the physical checks, any energy
-        refinement runs, the metrics).
+        ``optimize_s`` (the starts and the nlopt runs); ``finish_s`` (the physical checks, any
+        energy refinement runs, the metrics, the warnings).
+    warnings : tuple of dict
+        ``{"parameter", "kind", "detail"}`` with kind ``at-bound``, ``collapsed``,
+        ``undetermined`` or ``multimodal`` (:mod:`brdf.fitting.verdicts`).
+    verdict : str
+        ``"ok"`` without warnings, else ``"warning"``; ``converged`` stays the optimiser's.
     """
 
     params: dict
@@ -139,6 +161,8 @@ class FitResult:
     checks: dict
     provenance: dict
     timing: dict
+    warnings: tuple = ()
+    verdict: str = "ok"
 
     def to_dict(self):
         """JSON-ready report; ``timing`` is its last key (drop it to compare runs)."""
@@ -150,7 +174,7 @@ class FitResult:
             "metrics": self.metrics, "status": self.status, "converged": self.converged,
             "evaluations": self.evaluations, "runs": list(self.runs), "data": self.data,
             "energy": self.energy, "checks": self.checks, "provenance": self.provenance,
-            "timing": self.timing})
+            "warnings": list(self.warnings), "verdict": self.verdict, "timing": self.timing})
 
     def __str__(self):
         from ..properties import format_table
@@ -175,7 +199,11 @@ class FitResult:
             "checks: " + ", ".join(f"{c['name']} {'pass' if c['passed'] else 'FAIL'}"
                                    for c in self.checks["checks"]),
             f"fitted: {self.spec}",
+            f"verdict: {self.verdict}" + ("" if not self.warnings else
+                                          f" ({len(self.warnings)})"),
         ]
+        lines += [f"  warning {w['kind']}: {w['parameter']}: {w['detail']}"
+                  for w in self.warnings]
         return "\n".join(lines)
 
 
@@ -331,24 +359,95 @@ def _run(problem, algorithm, x0, angles, options, label):
 
 
 def _runs(problem, optimizer, starts, angles, options):
-    """The runs of a fit before any energy refinement: ``(best x, records)``; the kept run's
-    record comes last (its status is the fit's)."""
+    """The runs of a fit before any energy refinement: ``(best x, records, ends)``; the kept
+    run's record comes last (its status is the fit's); ``ends`` holds ``(x, loss, feasible)``
+    of each run on all the samples (the multimodality check compares them)."""
     import nlopt
     algorithm, kind = OPTIMIZERS[optimizer]
     if kind == "global":
         nlopt.srand(options["seed"])
         x, _, _, search = _run(problem, algorithm, problem.x0, angles, options, "global search")
-        x, _, _, polish = _run(problem, _local_of(optimizer, angles), x, angles, options,
-                               "polish")
-        return x, [search, polish]
-    rng = np.random.default_rng(options["seed"])
-    points = [problem.x0] + list(problem.random_x(rng, starts - 1))
-    runs = [_run(problem, algorithm, x0, angles, options,
-                 "spec start" if k == 0 else f"random start {k}")
-            for k, x0 in enumerate(points)]
-    best = min(range(len(runs)), key=lambda k: (not runs[k][2], runs[k][1]))
+        x, loss, feasible, polish = _run(problem, _local_of(optimizer, angles), x, angles,
+                                         options, "polish")
+        return x, [search, polish], [(x, loss, feasible)]
+    return _multistart(problem, algorithm, starts, angles, options)
+
+
+def _start_points(problem, screen, starts, seed):
+    """The starts of a local fit: ``[(label, x)]``. With one start, the better (on the
+    screening samples) of the data-driven start and the spec's values; else both, then the
+    ``starts - 2`` best of :data:`SCREEN_POINTS` seeded Sobol points of the box."""
+    from .starts import data_driven, design
+    x_data, loss_data = data_driven(problem, screen)
+    x_spec = problem.x0
+    if starts == 1:
+        with serial_below(len(screen.samples.wi)):
+            loss_spec = float(screen.channel_losses(x_spec).sum())
+        keep_spec = np.isfinite(loss_spec) and loss_spec < loss_data
+        return [("spec start", x_spec) if keep_spec else ("data-driven start", x_data)]
+    points = [("data-driven start", x_data), ("spec start", x_spec)]
+    extra = starts - 2
+    if extra > 0:
+        X = design(problem, max(SCREEN_POINTS, extra), seed)
+        scores = np.empty(len(X))
+        with serial_below(len(screen.samples.wi)):
+            for a in range(0, len(X), SCREEN_BATCH):
+                scores[a:a + SCREEN_BATCH] = screen.channel_losses(X[a:a + SCREEN_BATCH]).sum(1)
+        scores = np.where(np.isfinite(scores), scores, np.inf)
+        order = np.argsort(scores, kind="stable")[:extra]
+        points += [(f"sobol start {int(k)}", X[k]) for k in order]
+    return points
+
+
+def _distinct(x, others, problem):
+    """Whether ``x`` is a different optimum from every point of ``others``: some coordinate
+    of x (the logarithm for log-scaled parameters) differs by more than
+    :data:`MODE_SEPARATION` of its box width."""
+    width = problem.upper - problem.lower
+    return all(np.max(np.abs(x - o) / width) > MODE_SEPARATION for o in others)
+
+
+def _multistart(problem, algorithm, starts, angles, options):
+    """Local runs from :func:`_start_points`. On a table larger than the screening
+    subsample, the runs polish on the subsample and then the best end, and up to
+    :data:`MODE_POLISHES` - 1 distinct ends within :data:`MULTIMODAL_GAP` of its loss, are
+    polished on all the samples."""
+    from .starts import subsample
+    screen = problem.restricted(subsample(problem.samples))
+    points = _start_points(problem, screen, starts, options["seed"])
+    first = []
+    for label, x0 in points:
+        x, loss, feasible, record = _run(screen, algorithm, x0, angles, options, label)
+        record = {**record, "start": problem.natural(np.clip(x0, problem.lower, problem.upper)),
+                  "end": problem.natural(x), "samples": len(screen.samples.wi)}
+        first.append((x, loss, feasible, record))
+    order = sorted(range(len(first)), key=lambda k: (not first[k][2], first[k][1], k))
+    if screen is problem:
+        runs = first
+    else:
+        chosen = [order[0]]
+        best = first[order[0]][1]
+        for k in order[1:]:
+            if len(chosen) == MODE_POLISHES:
+                break
+            near = first[k][2] == first[order[0]][2] and first[k][1] <= best * (1 + MULTIMODAL_GAP)
+            if near and _distinct(first[k][0], [first[c][0] for c in chosen], problem):
+                chosen.append(k)
+        runs = []
+        for k in chosen:
+            x0 = first[k][0]
+            x, loss, feasible, record = _run(problem, algorithm, x0, angles, options,
+                                             f"{first[k][3]['run']}, all samples")
+            runs.append((x, loss, feasible, {**record, "start": problem.natural(x0),
+                                             "end": problem.natural(x),
+                                             "samples": len(problem.samples.wi)}))
+        runs = [first[k] for k in range(len(first))] + runs
+        order = sorted(range(len(first), len(runs)),
+                       key=lambda k: (not runs[k][2], runs[k][1], k))
+    best = order[0]
     records = [r[3] for k, r in enumerate(runs) if k != best] + [runs[best][3]]
-    return runs[best][0], records
+    ends = [(r[0], r[1], r[2]) for r in runs if r[3]["samples"] == len(problem.samples.wi)]
+    return runs[best][0], records, ends
 
 
 def _local_of(optimizer, angles):
@@ -401,7 +500,11 @@ def _versions():
 
 
 def _validate(optimizer, starts, seed, max_evals, tol):
+    """The number of starts (None: :data:`DEFAULT_STARTS`, or 1 for a global optimizer);
+    raises InputError naming the first bad option."""
     _, kind = _optimizer(optimizer)
+    if starts is None:
+        starts = 1 if kind == "global" else DEFAULT_STARTS
     if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or starts < 1:
         raise InputError(f"starts must be an integer >= 1, got {starts!r}")
     if kind == "global" and starts > 1:
@@ -413,6 +516,7 @@ def _validate(optimizer, starts, seed, max_evals, tol):
         raise InputError(f"max_evals must be an integer >= 1, got {max_evals!r}")
     if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
         raise InputError(f"tol must be a number in (0, 1), got {tol!r}")
+    return int(starts)
 
 
 def _energy_summary(report, angles):
@@ -426,7 +530,7 @@ def _energy_summary(report, angles):
     return summary
 
 
-def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
+def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
         energy_constraint=False, cutoff=losses.DEFAULT_CUTOFF, shared=(), fix=None, bounds=None,
         seed=0, max_evals=DEFAULT_MAX_EVALS, tol=DEFAULT_TOL, progress=None):
     """Fit a model to measured samples with nlopt.
@@ -436,7 +540,7 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
     data : Table, path or object with ``wi``, ``wo``, ``values`` (and ``sigma``)
         The measurements; a path is read with :func:`brdf.read`.
     spec : str or Model
-        The model to fit; its parameter values are the first starting point.
+        The model to fit; its parameter values are one of the starting points.
     loss : str
         A metric of :data:`brdf.fitting.losses.LOSSES` (default ``cosine-l2``).
     optimizer : str
@@ -445,9 +549,16 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         custom lobes, see :class:`~brdf.fitting.mixed_problem.MixedProblem`), LN_BOBYQA,
         LN_NELDERMEAD, LN_COBYLA (derivative-free), GN_DIRECT_L, GN_CRS2_LM, GN_ISRES, MLSL
         (global, then polished).
-    starts : int
-        Local optimizers: runs from the spec's values and ``starts - 1`` seeded random points
-        of the box (log-uniform for log-scaled parameters); the best is kept.
+    starts : int, optional
+        Local runs (default :data:`DEFAULT_STARTS`; global optimizers take 1). The data-driven
+        start (:func:`brdf.fitting.starts.data_driven`: the scales projected out by least
+        squares over a grid of lobe widths), the spec's values, and the ``starts - 2`` best of
+        :data:`SCREEN_POINTS` scrambled Sobol points of the box (seeded; log-scaled
+        parameters in log space) by their loss on the start subsample. Each is polished by the
+        local optimizer, on the subsample first for a table larger than it (then the best
+        end, and a distinct near-best one, on all the samples); the best is kept and every run
+        is in ``runs``. ``starts=1`` is one run from the better of the data-driven start and
+        the spec's values.
     energy_constraint : bool
         Constrain the directional albedo to at most 1 at :func:`energy_angles`; should the
         energy check of the result still fail between them, its worst angle joins the
@@ -477,7 +588,7 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
     """
     from ..properties import check
     start = time.perf_counter()
-    _validate(optimizer, starts, seed, max_evals, tol)
+    starts = _validate(optimizer, starts, seed, max_evals, tol)
     table = _load(data)
     problem = problem_for(table, spec, loss=loss, cutoff=cutoff, shared=shared, fix=fix,
                           bounds=bounds)
@@ -485,11 +596,11 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         raise InputError(f"nothing to fit: every parameter of {problem.base} is fixed")
     prepared = time.perf_counter()
     angles = energy_angles(problem.base) if energy_constraint else None
-    runs = 2 if OPTIMIZERS[optimizer][1] == "global" else starts
+    runs = 2 if OPTIMIZERS[optimizer][1] == "global" else starts + MODE_POLISHES
     bar = _progress_bar(runs * max_evals, progress)
     options = {"max_evals": max_evals, "tol": tol, "seed": seed, "progress": bar}
     try:
-        x, records = _runs(problem, optimizer, starts, angles, options)
+        x, records, ends = _runs(problem, optimizer, starts, angles, options)
         optimized = time.perf_counter()
         report = check(problem.model(x))
         if angles is not None:
@@ -499,6 +610,7 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
         if bar is not None:
             bar.close()
     metrics = problem.metrics(x)
+    warnings = _warnings(problem, x, metrics[problem.loss_name], ends, records)
     end = time.perf_counter()
     timing = {"total_s": end - start, "prepare_s": prepared - start,
               "optimize_s": optimized - prepared, "finish_s": end - optimized}
@@ -508,10 +620,20 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=1,
                "bounds": {k: list(v) for k, v in (bounds or {}).items()},
                "max_evals": int(max_evals), "tol": float(tol)}
     return _result(problem, table, spec, x, metrics, records, report, angles, options, seed,
-                   timing)
+                   timing, warnings)
 
 
-def _result(problem, table, spec, x, metrics, records, report, angles, options, seed, timing):
+def _warnings(problem, x, loss, ends, records):
+    """:func:`brdf.fitting.verdicts.warnings_of` at the kept optimum; the Hessian on the start
+    subsample of a large table."""
+    from .starts import subsample
+    from .verdicts import warnings_of
+    screen = problem.restricted(subsample(problem.samples))
+    return warnings_of(problem, x, loss, ends, MULTIMODAL_GAP, MODE_SEPARATION, screen)
+
+
+def _result(problem, table, spec, x, metrics, records, report, angles, options, seed, timing,
+            warnings):
     from ..spec import parse
     model = problem.model(x)
     params = model.params
@@ -531,4 +653,5 @@ def _result(problem, table, spec, x, metrics, records, report, angles, options, 
         fixed={k: v for k, v in params.items() if k not in problem.names},
         bounds={p.name: [p.lower, p.upper] for p in problem.free}, runs=tuple(records),
         data=problem.samples.describe(), energy=_energy_summary(report, angles),
-        checks=report.to_dict(), provenance=provenance, timing=timing)
+        checks=report.to_dict(), provenance=provenance, timing=timing,
+        warnings=tuple(warnings), verdict="warning" if warnings else "ok")

@@ -18,12 +18,19 @@ key                value
 ``status``         nlopt's return code name for the final run
 ``converged``      true when that run ended on a tolerance (not its budget or a failure)
 ``evaluations``    objective evaluations over all runs
-``runs``           one object per start or stage: optimizer, status, loss, evaluations
+``runs``           one object per start or stage: run, optimizer, status, loss, evaluations,
+                   feasible; local runs also start and end (``{free name: value}``) and
+                   samples (scored on the start subsample or on all samples)
 ``data``           samples_total, samples_used, values_used, channels, cutoff_deg, weighting
 ``energy``         constrained, holds, worst_albedo, theta_i, phi_i, channel, tolerance
 ``checks``         ``brdf.check`` of the fitted model (non-negativity, reciprocity, energy)
 ``provenance``     input {name, path, sha256, format, size}, spec (the start), seed, options,
                    library versions
+``warnings``       list of ``{"parameter", "kind", "detail"}``, kind ``at-bound``,
+                   ``collapsed``, ``undetermined`` or ``multimodal``
+                   (:mod:`brdf.fitting.verdicts`); absent in reports written before it
+``verdict``        ``"ok"`` (no warnings) or ``"warning"``; ``converged`` stays the
+                   optimiser's status
 ``posterior``      present with ``--mcmc``: :meth:`brdf.fitting.mcmc.Posterior.to_dict`
 ``timing``         wall times (total_s, prepare_s, optimize_s, finish_s, mcmc_s): always
                    last, the one part that changes between runs with the same seed
@@ -73,6 +80,16 @@ class FitReport:
     @property
     def spec(self):
         return str(self.model)
+
+    @property
+    def warnings(self):
+        """The report's warnings (an empty list for reports written before they existed)."""
+        return self.document.get("warnings", [])
+
+    @property
+    def verdict(self):
+        """``"ok"``, ``"warning"``, or None for a report written before verdicts existed."""
+        return self.document.get("verdict")
 
 
 def load_report(path):
