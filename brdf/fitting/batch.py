@@ -30,7 +30,7 @@ __all__ = ["batch", "BatchResult", "STATUSES"]
 #: ``failed`` (bad input, a stale report without force, or an error in the worker).
 STATUSES = ("fitted", "not-converged", "skipped", "failed")
 _COLUMNS = ("file", "report", "status", "loss_name", "loss", "converged", "energy_holds",
-            "seconds", "error")
+            "verdict", "warnings", "seconds", "error")
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,8 @@ class BatchResult:
     ----------
     rows : tuple of dict
         file, report, status (see :data:`STATUSES`), loss_name, loss, converged, energy_holds,
-        seconds, error, and every fitted parameter under its flat name.
+        verdict (``ok``/``warning``), warnings (the kinds, ``;``-separated), seconds, error, and
+        every fitted parameter under its flat name.
     outdir : str
     """
 
@@ -65,10 +66,11 @@ class BatchResult:
         body = [(Path(r["file"]).name, r["status"],
                  "" if r["loss"] is None else f"{r['loss']:.6g}",
                  "" if r["energy_holds"] is None else ("yes" if r["energy_holds"] else "NO"),
+                 (r["verdict"] or "") if not r["warnings"] else f"warning: {r['warnings']}",
                  f"{r['seconds']:.2f}", r["error"] or "") for r in self.rows]
         counts = ", ".join(f"{n} {s}" for s, n in self.counts().items() if n)
-        return "\n".join([format_table(("file", "status", "loss", "energy", "s", "error"),
-                                       body, "llrlrl"),
+        return "\n".join([format_table(("file", "status", "loss", "energy", "verdict", "s",
+                                        "error"), body, "llrllrl"),
                           f"{len(self.rows)} files: {counts}; reports in {self.outdir}"])
 
 
@@ -148,11 +150,13 @@ def fit_file(path, spec, options, plugins=()):
 
 def _row(path, report_path, status, report=None, error=None):
     row = {"file": str(path), "report": str(report_path), "status": status, "loss_name": None,
-           "loss": None, "converged": None, "energy_holds": None, "seconds": 0.0,
-           "error": error}
+           "loss": None, "converged": None, "energy_holds": None, "verdict": None,
+           "warnings": None, "seconds": 0.0, "error": error}
     if report is not None:
         row.update(loss_name=report["loss"]["name"], loss=report["loss"]["value"],
                    converged=report["converged"], energy_holds=report["energy"]["holds"],
+                   verdict=report.get("verdict"),
+                   warnings=";".join(sorted({w["kind"] for w in report.get("warnings", [])})),
                    seconds=report["timing"]["total_s"])
         row.update({name: report["params"][name] for name in report["free"]})
     return row

@@ -11,6 +11,9 @@ from .report import information_criteria
 __all__ = ["compare", "Comparison", "CRITERIA"]
 
 CRITERIA = ("aic", "bic")
+#: A candidate whose lobe collapsed is refitted from this many times its starts (at least
+#: :data:`~brdf.fitting.nlopt_fit.DEFAULT_STARTS` times it), with another seed, before ranking.
+REFIT_FACTOR = 4
 
 
 @dataclass(frozen=True)
@@ -25,7 +28,9 @@ class Comparison:
         One per spec, best first: spec (the start), fitted (the fitted spec), n, k, loss,
         metrics, likelihood, aic, bic, delta (of the criterion against the best), weight
         (Akaike or Schwarz weight, exp(-delta / 2) normalised: the relative support of each
-        model within this set, Burnham & Anderson 2002, sec. 2.9), converged, checks_pass.
+        model within this set, Burnham & Anderson 2002, sec. 2.9), converged, checks_pass,
+        verdict and warnings (of the fit kept), refitted (whether a collapsed lobe sent it
+        through the wider refit of :func:`compare`).
     results : tuple of FitResult
         The fits, in the same order.
     """
@@ -45,18 +50,29 @@ class Comparison:
         from ..properties import format_table
         body = [(str(i + 1), r["spec"], str(r["k"]), f"{r['loss']:.6g}", f"{r['aic']:.2f}",
                  f"{r['bic']:.2f}", f"{r['delta']:.2f}", f"{r['weight']:.3f}",
-                 "yes" if r["converged"] else "NO", "pass" if r["checks_pass"] else "FAIL")
+                 "yes" if r["converged"] else "NO", "pass" if r["checks_pass"] else "FAIL",
+                 r["verdict"] if not r["warnings"] else
+                 "WARNING: " + ", ".join(sorted({w["kind"] for w in r["warnings"]})))
                 for i, r in enumerate(self.rows)]
         head = ("rank", "spec", "k", self.rows[0]["loss_name"], "AIC", "BIC",
-                f"d{self.by.upper()}", "weight", "converged", "checks")
+                f"d{self.by.upper()}", "weight", "converged", "checks", "verdict")
         notes = (f"n = {self.rows[0]['n']:,} measured values; likelihood: "
                  f"{self.rows[0]['likelihood']}; best first by {self.by.upper()}")
-        return "\n".join([format_table(head, body, "rlrrrrrrll"), notes,
-                          f"best: {self.rows[0]['fitted']}"])
+        warned = [f"  {r['spec']}: {w['kind']} {w['parameter']}: {w['detail']}"
+                  for r in self.rows for w in r["warnings"]]
+        return "\n".join([format_table(head, body, "rlrrrrrrlll"), notes,
+                          f"best: {self.rows[0]['fitted']}"]
+                         + (["warnings (fits not to be trusted as they stand):"] + warned
+                            if warned else []))
 
 
 def compare(data, specs, *, by="aic", **fit_options):
     """Fit each spec to ``data`` with the same options and rank the fits.
+
+    A fit whose lobe collapsed (a ``collapsed`` warning, :mod:`brdf.fitting.verdicts`) is
+    fitted again from :data:`REFIT_FACTOR` times as many starts with the next seed, and the
+    lower loss is ranked; a candidate still carrying warnings is marked in the table (its
+    ``verdict`` column and the lines under it) and in the JSON rows.
 
     Parameters
     ----------
@@ -84,8 +100,14 @@ def compare(data, specs, *, by="aic", **fit_options):
         raise InputError(f"compare needs at least two specs, got {len(specs)}")
     table = _load(data)
     per_spec = _options_per_spec(specs, fit_options)
-    results = [fit(table, spec, **options) for spec, options in zip(specs, per_spec)]
-    rows = [_row(spec, r) for spec, r in zip(specs, results)]
+    results, refitted = [], []
+    for spec, options in zip(specs, per_spec):
+        result = fit(table, spec, **options)
+        again = _refit_collapsed(table, spec, options, result)
+        refitted.append(again is not None)
+        results.append(result if again is None or again.loss >= result.loss else again)
+    rows = [{**_row(spec, r), "refitted": again}
+            for spec, r, again in zip(specs, results, refitted)]
     order = sorted(range(len(rows)), key=lambda i: (rows[i][by], i))
     best = rows[order[0]][by]
     support = np.array([math.exp(-0.5 * (rows[i][by] - best)) for i in order])
@@ -93,6 +115,19 @@ def compare(data, specs, *, by="aic", **fit_options):
     for i, s in zip(order, support / support.sum()):
         ranked.append({**rows[i], "delta": rows[i][by] - best, "weight": float(s)})
     return Comparison(by, tuple(ranked), tuple(results[i] for i in order))
+
+
+def _refit_collapsed(table, spec, options, result):
+    """A refit of ``spec`` from :data:`REFIT_FACTOR` times the starts (another seed) when a
+    lobe of ``result`` collapsed, else None (nor for a global optimizer's single run)."""
+    from .nlopt_fit import DEFAULT_STARTS, OPTIMIZERS, fit
+    if not any(w["kind"] == "collapsed" for w in result.warnings):
+        return None
+    if OPTIMIZERS[options.get("optimizer", "LD_LBFGS")][1] == "global":
+        return None
+    starts = REFIT_FACTOR * max(options.get("starts") or DEFAULT_STARTS, DEFAULT_STARTS)
+    return fit(table, spec, **{**options, "starts": starts,
+                               "seed": int(options.get("seed", 0)) + 1})
 
 
 def _options_per_spec(specs, options):
@@ -127,4 +162,5 @@ def _row(spec, result):
             "loss_name": result.loss_name, "loss": result.loss, "metrics": result.metrics,
             "likelihood": ic["likelihood"], "aic": ic["aic"], "bic": ic["bic"],
             "converged": result.converged,
-            "checks_pass": all(c["passed"] is not False for c in result.checks["checks"])}
+            "checks_pass": all(c["passed"] is not False for c in result.checks["checks"]),
+            "verdict": result.verdict, "warnings": list(result.warnings)}
