@@ -408,46 +408,51 @@ def _distinct(x, others, problem):
 
 
 def _multistart(problem, algorithm, starts, angles, options):
-    """Local runs from :func:`_start_points`. On a table larger than the screening
-    subsample, the runs polish on the subsample and then the best end, and up to
-    :data:`MODE_POLISHES` - 1 distinct ends within :data:`MULTIMODAL_GAP` of its loss, are
-    polished on all the samples."""
+    """Local runs from :func:`_start_points`, then a second stage where needed.
+
+    On a table larger than the screening subsample the first runs polish on the subsample;
+    with the energy constraint they run without it (a constrained run costs an albedo
+    Jacobian per step). Then the best end, and up to :data:`MODE_POLISHES` - 1 distinct ends
+    within :data:`MULTIMODAL_GAP` of its loss, are polished on all the samples, constrained
+    when asked. Returns ``(best x, records, ends)`` as :func:`_runs`."""
     from .starts import subsample
     screen = problem.restricted(subsample(problem.samples))
     points = _start_points(problem, screen, starts, options["seed"])
+    single = screen is problem and angles is None
     first = []
     for label, x0 in points:
-        x, loss, feasible, record = _run(screen, algorithm, x0, angles, options, label)
+        x, loss, feasible, record = _run(screen, algorithm, x0, angles if single else None,
+                                         options, label)
         record = {**record, "start": problem.natural(np.clip(x0, problem.lower, problem.upper)),
                   "end": problem.natural(x), "samples": len(screen.samples.wi)}
         first.append((x, loss, feasible, record))
     order = sorted(range(len(first)), key=lambda k: (not first[k][2], first[k][1], k))
-    if screen is problem:
-        runs = first
-    else:
+    runs = list(first)
+    if not single:
         chosen = [order[0]]
         best = first[order[0]][1]
         for k in order[1:]:
             if len(chosen) == MODE_POLISHES:
                 break
-            near = first[k][2] == first[order[0]][2] and first[k][1] <= best * (1 + MULTIMODAL_GAP)
-            if near and _distinct(first[k][0], [first[c][0] for c in chosen], problem):
+            if first[k][1] <= best * (1 + MULTIMODAL_GAP) and _distinct(
+                    first[k][0], [first[c][0] for c in chosen], problem):
                 chosen.append(k)
-        runs = []
+        what = "all samples" if screen is not problem else "energy constrained"
+        if screen is not problem and angles is not None:
+            what = "all samples, energy constrained"
         for k in chosen:
             x0 = first[k][0]
             x, loss, feasible, record = _run(problem, algorithm, x0, angles, options,
-                                             f"{first[k][3]['run']}, all samples")
+                                             f"{first[k][3]['run']}, {what}")
             runs.append((x, loss, feasible, {**record, "start": problem.natural(x0),
                                              "end": problem.natural(x),
                                              "samples": len(problem.samples.wi)}))
-        runs = [first[k] for k in range(len(first))] + runs
         order = sorted(range(len(first), len(runs)),
                        key=lambda k: (not runs[k][2], runs[k][1], k))
     best = order[0]
     records = [r[3] for k, r in enumerate(runs) if k != best] + [runs[best][3]]
-    ends = [(r[0], r[1], r[2]) for r in runs if r[3]["samples"] == len(problem.samples.wi)]
-    return runs[best][0], records, ends
+    final = runs if single else runs[len(first):]
+    return runs[best][0], records, [(r[0], r[1], r[2]) for r in final]
 
 
 def _local_of(optimizer, angles):
@@ -555,9 +560,9 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
         squares over a grid of lobe widths), the spec's values, and the ``starts - 2`` best of
         :data:`SCREEN_POINTS` scrambled Sobol points of the box (seeded; log-scaled
         parameters in log space) by their loss on the start subsample. Each is polished by the
-        local optimizer, on the subsample first for a table larger than it (then the best
-        end, and a distinct near-best one, on all the samples); the best is kept and every run
-        is in ``runs``. ``starts=1`` is one run from the better of the data-driven start and
+        local optimizer, on the subsample for a table larger than it and without the energy
+        constraint (then the best end, and a distinct near-best one, again on all the samples
+        and constrained); the best is kept and every run is in ``runs``. ``starts=1`` is one run from the better of the data-driven start and
         the spec's values.
     energy_constraint : bool
         Constrain the directional albedo to at most 1 at :func:`energy_angles`; should the

@@ -162,10 +162,10 @@ def multimodal(problem, x, loss, ends, gap, separation, skip=()):
 def warnings_of(problem, x, loss, ends, gap, separation, screen=None):
     """Every warning on the optimum ``x`` of ``problem`` (loss ``loss``); ``ends`` are the
     local runs' ``(x, loss, feasible)`` on the same samples; ``screen`` a problem on a
-    subsample for the Hessian (default: ``problem``)."""
+    subsample for the lobe shares and the Hessian (default: ``problem``)."""
     x = np.asarray(x, dtype=float)
-    out = at_bound(problem, x) + collapsed(problem, x)
     probe = problem if screen is None else screen
+    out = at_bound(problem, x) + collapsed(probe, x)
     probe_loss = loss if screen is None or screen is problem else float(
         probe.channel_losses(x).sum())
     weak, names = undetermined(probe, x, probe_loss)

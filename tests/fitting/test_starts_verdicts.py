@@ -149,7 +149,11 @@ def test_the_energy_constrained_default_fit_holds():
     table = brdf.measure("lambert(albedo=0.5) + ggx(ks=0.8, alpha=0.3)", GRID)
     r = brdf.fit(table, "lambert + ggx", optimizer="LD_SLSQP", energy_constraint=True,
                  starts=3)
-    assert r.energy["holds"] and len([x for x in r.runs if "start" in x]) == 3
+    assert r.energy["holds"] and r.energy["constrained"]
+    # three unconstrained runs, then the best end polished under the constraint
+    assert [x["feasible"] for x in r.runs[:3]] == [None] * 3
+    assert r.runs[-1]["run"].endswith("energy constrained") and r.runs[-1]["feasible"]
+    assert r.loss > 1e-6  # the constraint costs loss: the data's albedo exceeds 1
 
 
 # --- warnings ----------------------------------------------------------------------------------
