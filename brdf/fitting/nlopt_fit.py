@@ -86,6 +86,11 @@ MODE_SEPARATION = 0.05
 MULTIMODAL_GAP = 0.05
 #: Ends polished on all the samples of a large table: the best and distinct near-best ones.
 MODE_POLISHES = 2
+#: Threads that run the first-stage local runs side by side (None: one per core). Each run
+#: is independent and deterministic, and results are kept in the order of the starts, so the
+#: report does not depend on it. On 2 cores, eight runs on the RGL paper (5,668 samples):
+#: 1.37-1.46 s one after another, 0.93 s on two threads, identical ends.
+RUN_WORKERS = None
 _CONVERGED = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED")
 _STATUS = ("SUCCESS", "STOPVAL_REACHED", "FTOL_REACHED", "XTOL_REACHED", "MAXEVAL_REACHED",
            "MAXTIME_REACHED", "FAILURE", "INVALID_ARGS", "OUT_OF_MEMORY", "ROUNDOFF_LIMITED",
@@ -419,13 +424,21 @@ def _multistart(problem, algorithm, starts, angles, options):
     screen = problem.restricted(subsample(problem.samples))
     points = _start_points(problem, screen, starts, options["seed"])
     single = screen is problem and angles is None
-    first = []
-    for label, x0 in points:
+    def local(point):
+        label, x0 = point
         x, loss, feasible, record = _run(screen, algorithm, x0, angles if single else None,
                                          options, label)
         record = {**record, "start": problem.natural(np.clip(x0, problem.lower, problem.upper)),
                   "end": problem.natural(x), "samples": len(screen.samples.wi)}
-        first.append((x, loss, feasible, record))
+        return x, loss, feasible, record
+
+    workers = min(len(points), RUN_WORKERS or os.cpu_count() or 1)
+    if workers > 1:
+        from concurrent.futures import ThreadPoolExecutor
+        with ThreadPoolExecutor(workers) as pool:
+            first = list(pool.map(local, points))  # in the order of the starts
+    else:
+        first = [local(p) for p in points]
     order = sorted(range(len(first)), key=lambda k: (not first[k][2], first[k][1], k))
     runs = list(first)
     if not single:
