@@ -23,10 +23,13 @@ small values negative as real measurements do.
 """
 
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 
+from . import arguments
+from .arguments import shown
 from .errors import FormatError, InputError
 from .geometry import directions_from_degrees
 
@@ -61,8 +64,17 @@ def measure(model, geometry="inplane:5", noise="none", seed=0, *, name=None):
     from .table import AngleTable
     if isinstance(model, str):
         model = parse(model)
+    if not (callable(getattr(model, "eval", None)) and hasattr(model, "channels")):
+        raise InputError(f"measure: model must be a model, a spec or a measured table, got "
+                         f"{type(model).__name__}")
+    if not isinstance(geometry, (str, os.PathLike)):
+        raise InputError(f"measure: geometry must be a string or a path, got {shown(geometry)}")
+    if not isinstance(noise, str):
+        raise InputError(f"measure: noise must be a string, got {shown(noise)}")
+    if not (name is None or isinstance(name, str)):
+        raise InputError(f"measure: name must be a string, got {shown(name)}")
     kind, scale = parse_noise(noise)
-    rng = np.random.default_rng(seed)
+    rng = arguments.rng(seed, "measure: seed")
     isotropic = not getattr(model, "is_anisotropic", True)
     merl = str(geometry).strip().lower() == "merl"
     if merl:
@@ -74,7 +86,7 @@ def measure(model, geometry="inplane:5", noise="none", seed=0, *, name=None):
     values = np.asarray(model.eval(wi, wo), dtype=float)
     values, sigma = add_noise(values, kind, scale, rng)
     metadata = {"generator": "brdf.measure", "model": str(model), "geometry": str(geometry),
-                "noise": noise, "seed": seed if isinstance(seed, int) else None,
+                "noise": noise, "seed": None if isinstance(seed, np.random.Generator) else int(seed),
                 "units": "1/sr"}
     name = name or f"measured {model}"
     if merl:

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import arguments
 from .errors import InputError
 from .geometry import spherical_to_cartesian
 
@@ -94,6 +95,11 @@ HORIZON_GROWTH = 2.0
 ENERGY_UNRESOLVED = 0.1
 #: Most grazing polar angle tested, in degrees (exactly 90 puts a direction in the horizon).
 GRAZING_DEG = 89.9
+#: Most random pairs ``check`` accepts: each costs about 200 bytes at its peak (angles,
+#: directions, values both ways), so 10 million take some 2 GB.
+MAX_PAIRS = 10_000_000
+#: Most incidence angles (or azimuths) of the energy check's grid, each an albedo integral.
+MAX_STEPS = 10_000
 
 # Structured direction pairs, in degrees. Azimuth differences cluster around 0 (retro-reflection)
 # and 180 (the specular plane), where sharp lobes and their asymmetries live.
@@ -385,8 +391,12 @@ def check(obj, *, seed=0, pairs=200_000, theta_steps=90, anisotropic_steps=(24, 
         if not callable(getattr(obj, name, None)):
             raise InputError(f"check: expected a model, a spec or a measured table with "
                              f"eval() and albedo(), got {type(obj).__name__}")
-    _require_counts(pairs=(pairs, 0), theta_steps=(theta_steps, 2),
-                    anisotropic_steps=(anisotropic_steps, (2, 1)))
+    _require_counts(pairs=(pairs, 0, MAX_PAIRS), theta_steps=(theta_steps, 2, MAX_STEPS),
+                    anisotropic_steps=(anisotropic_steps, (2, 1), (MAX_STEPS, MAX_STEPS)))
+    arguments.seed(seed, "check: seed")
+    for name, tol in (("reciprocity_tol", reciprocity_tol), ("energy_tol", energy_tol),
+                      ("table_reciprocity_tol", table_reciprocity_tol)):
+        arguments.real(tol, f"check: {name}", 0.0)
     channels = int(obj.channels)
     declared = {k: bool(getattr(obj, k)) for k in ("reciprocal", "energy_conserving", "delta",
                                                    "is_anisotropic") if hasattr(obj, k)}
@@ -407,14 +417,16 @@ def check(obj, *, seed=0, pairs=200_000, theta_steps=90, anisotropic_steps=(24, 
 
 
 def _require_counts(**options):
-    """Raise InputError unless each option is an integer (or a tuple of integers) >= its low."""
-    for name, (value, low) in options.items():
-        values, lows = (value, low) if isinstance(low, tuple) else ((value,), (low,))
+    """Raise InputError unless each option is an integer (or a tuple of integers) from its
+    low to its high."""
+    for name, (value, low, high) in options.items():
+        values, lows, highs = (value, low, high) if isinstance(low, tuple) else (
+            (value,), (low,), (high,))
         if not (isinstance(values, (tuple, list)) and len(values) == len(lows)
-                and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= lo
-                        for v, lo in zip(values, lows))):
-            expected = (f"{len(lows)} integers >= {lows}" if len(lows) > 1
-                        else f"an integer >= {low}")
+                and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+                        and lo <= v <= hi for v, lo, hi in zip(values, lows, highs))):
+            expected = (f"{len(lows)} integers from {lows} to {highs}" if len(lows) > 1
+                        else f"an integer from {low} to {high:,}")
             raise InputError(f"check: {name} must be {expected}, got {value!r}")
 
 

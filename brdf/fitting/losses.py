@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..arguments import real, shown
 from ..errors import InputError
 
 __all__ = ["LOSSES", "DEFAULT_CUTOFF", "LOG_OFFSET", "RELATIVE_FLOOR", "SIGMA_FLOOR", "Samples",
@@ -190,9 +191,7 @@ def prepare(data, cutoff=DEFAULT_CUTOFF):
     -------
     Samples
     """
-    cutoff = float(cutoff)
-    if not 0.0 < cutoff <= 90.0:
-        raise InputError(f"cutoff {cutoff:g} must be in (0, 90] degrees")
+    cutoff = real(cutoff, "cutoff (degrees)", 0.0, 90.0, low_open=True)
     if not all(hasattr(data, a) for a in ("wi", "wo", "values")):
         raise InputError(f"fit data must be a table (or have wi, wo and values), got "
                          f"{type(data).__name__}")
@@ -217,8 +216,8 @@ def prepare(data, cutoff=DEFAULT_CUTOFF):
 
 def check_loss(name, samples=None):
     """Raise InputError unless ``name`` is a metric that ``samples`` can be scored with."""
-    if name not in LOSSES:
-        raise InputError(f"unknown loss {name!r}; losses: {', '.join(LOSSES)}")
+    if not isinstance(name, str) or name not in LOSSES:
+        raise InputError(f"unknown loss {shown(name)}; losses: {', '.join(LOSSES)}")
     if name == "chi-square" and samples is not None and samples.sigma is None:
         raise InputError("loss chi-square needs per-sample sigma, and this table has none; "
                          f"use one of {', '.join(n for n in LOSSES if n != 'chi-square')}")

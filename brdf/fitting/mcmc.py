@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
 
@@ -240,7 +241,8 @@ class Posterior:
     # -- derived views ---------------------------------------------------------------------------
     def models(self, draws=100, seed=0):
         """``draws`` models drawn from the posterior (seeded)."""
-        rng = np.random.default_rng(seed)
+        rng = arguments.rng(seed, "models: seed")
+        draws = arguments.integer(draws, "models: draws", 1)
         pick = rng.choice(len(self.draws_x), size=min(draws, len(self.draws_x)), replace=False)
         m = len(self.log_posterior.problem.names)
         return [self.log_posterior.problem.model(x[:m]) for x in self.draws_x[np.sort(pick)]]
@@ -291,10 +293,8 @@ class Posterior:
 
 def _seed_state(seed):
     """A numpy RandomState for emcee (which takes no Generator) from an int or Generator."""
-    if isinstance(seed, np.random.Generator):
+    if isinstance(arguments.seed(seed, "mcmc: seed"), np.random.Generator):
         seed = int(seed.integers(2 ** 32))
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0 or a numpy Generator, got {seed!r}")
     return np.random.RandomState(int(seed) % 2 ** 32), np.random.default_rng(int(seed))
 
 

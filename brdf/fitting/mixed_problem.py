@@ -10,9 +10,13 @@ so the gradient-based optimizers (LD_LBFGS, the default, and LD_SLSQP) work unch
 derivative-free and global ones, and ``brdf.mcmc``. :func:`problem_for` picks the class.
 """
 
+import numbers
+
 import numpy as np
 
+from .. import arguments
 from .._threads import serial_below
+from ..errors import InputError
 from . import losses
 from .problem import Problem
 
@@ -24,7 +28,40 @@ def problem_for(data, spec, **options):
     kernels, else a :class:`MixedProblem` (same arguments as :class:`Problem`)."""
     from ..spec import parse
     model = parse(spec)
-    return (Problem if model.uses_kernels else MixedProblem)(data, model, **options)
+    return (Problem if model.uses_kernels else MixedProblem)(data, model, **_checked(options))
+
+
+def _checked(options):
+    """``shared`` as a tuple of names (one name may be a plain string), ``fix`` and ``bounds``
+    as dicts keyed by names, their values numbers (``fix``: one or one per channel;
+    ``bounds``: a pair); InputError otherwise."""
+    options = dict(options)
+    if "shared" in options:
+        options["shared"] = arguments.names(options["shared"], "shared")
+    if "fix" in options:
+        options["fix"] = arguments.mapping(options["fix"], "fix", "value")
+        for name, value in options["fix"].items():
+            if not (_is_number(value) or _numbers(value)):
+                raise InputError(f"fix {name}: expected a number or a list of per-channel "
+                                 f"numbers, got {arguments.shown(value)}")
+    if "bounds" in options:
+        options["bounds"] = arguments.mapping(options["bounds"], "bounds", "(lower, upper)")
+        for name, box in options["bounds"].items():
+            if not (_numbers(box) and len(box) == 2):
+                raise InputError(f"bounds {name}: expected (lower, upper), two numbers, got "
+                                 f"{arguments.shown(box)}")
+    return options
+
+
+def _is_number(value):
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
+def _numbers(value):
+    """Whether ``value`` is a flat list, tuple or 1-D array of numbers."""
+    return (isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray)
+                                                 and value.ndim == 1)) \
+        and all(_is_number(v) for v in value)
 
 
 class MixedProblem(Problem):

@@ -13,6 +13,7 @@ the sample index, so the same seed gives the same bytes whatever the number of t
 """
 
 import math
+import numbers
 import sys
 import time
 from dataclasses import dataclass
@@ -20,6 +21,8 @@ from typing import Optional
 
 import numpy as np
 
+from .. import arguments
+from ..arguments import integer, shown
 from ..errors import InputError
 from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Material, Mesh,
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
@@ -93,30 +96,42 @@ class RenderResult:
         return write_png(path, tonemap(self.image, exposure), force)
 
 
-def _options(size, spp, max_depth, rr_depth, strategy):
-    try:
-        w, h = (int(size), int(size)) if np.ndim(size) == 0 else (int(size[0]), int(size[1]))
-    except (TypeError, ValueError, IndexError):
-        raise InputError(f"size: expected W or (W, H), got {size!r}") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise InputError(f"size: expected 1 to 16384 pixels a side, got {w} x {h}")
-    if int(spp) < 1:
-        raise InputError(f"spp: expected at least 1, got {spp}")
-    depth = 1 << 20 if max_depth in (None, -1) else int(max_depth)
-    if depth < 1:
-        raise InputError(f"max_depth: expected at least 1 (or -1 for no limit), got {max_depth}")
-    if strategy not in STRATEGIES:
-        raise InputError(f"strategy: expected one of {', '.join(STRATEGIES)}, got {strategy!r}")
-    return w, h, depth
+#: Largest image side in pixels.
+MAX_SIZE = 16384
+#: Most samples per pixel: sample indices (the random streams' keys) stay well inside int64.
+MAX_SPP = 1 << 31
+#: Deepest path accepted, and the depth that max_depth=-1 (no limit) stands for.
+MAX_DEPTH = 1 << 20
+
+
+def _options(size, spp, max_depth, rr_depth, strategy, threads):
+    """Checked ``(w, h, spp, depth, rr_depth, threads or None)``: each reaches the kernel as
+    an int64, which would wrap or index past its arrays where Python's ints do not."""
+    sides = (size, size) if np.ndim(size) == 0 else size
+    if isinstance(sides, (str, bytes)) or not (np.ndim(sides) == 1 and len(sides) == 2):
+        raise InputError(f"render: size must be W or (W, H) in pixels, got {shown(size)}")
+    w, h = (integer(v, "render: size", 1, MAX_SIZE) for v in sides)
+    spp = integer(spp, "render: spp", 1, MAX_SPP)
+    depth = MAX_DEPTH if max_depth is None or (_is_int(max_depth) and max_depth == -1) else \
+        integer(max_depth, "render: max_depth (or -1 for no limit)", 1, MAX_DEPTH)
+    rr_depth = integer(rr_depth, "render: rr_depth", 1, MAX_DEPTH)
+    if not isinstance(strategy, str) or strategy not in STRATEGIES:
+        raise InputError(f"render: strategy must be one of {', '.join(STRATEGIES)}, got "
+                         f"{shown(strategy)}")
+    if threads is not None:
+        threads = integer(threads, "render: threads", 1)
+    return w, h, spp, depth, rr_depth, threads
+
+
+def _is_int(value):
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def _seed(seed):
+    seed = arguments.seed(seed, "render: seed")
     if isinstance(seed, np.random.Generator):
         return int(seed.integers(0, 2 ** 63))
-    s = int(seed)
-    if s < 0:
-        raise InputError(f"seed: expected a non-negative integer, got {seed}")
-    return s % (2 ** 64)
+    return int(seed) % (2 ** 64)
 
 
 def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, strategy="mis",
@@ -144,7 +159,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     jitter : bool
         Random positions within each pixel (a box filter); False traces pixel centres.
     threads : int, optional
-        Worker threads (default: numba's, all cores). The image does not depend on it.
+        Worker threads, at least 1 (default: numba's, all cores; more than numba's count
+        means numba's count). The image does not depend on it.
     progress : bool, optional
         A progress bar on stderr (default: only when stderr is a terminal).
     layers : bool
@@ -158,7 +174,11 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     """
     import numba
     from ._integrator import render_pass
-    w, h, depth = _options(size, spp, max_depth, rr_depth, strategy)
+    if not isinstance(scene, Scene):
+        raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "
+                         f"load()), got {type(scene).__name__}")
+    w, h, spp, depth, rr_depth, threads = _options(size, spp, max_depth, rr_depth, strategy,
+                                                   threads)
     seed = _seed(seed)
     compiled = scene.compile()
     cam = scene.camera.pack(w, h)
@@ -169,8 +189,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     args = (cam, compiled.geo, compiled.mats, compiled.lights)
     old = numba.get_num_threads()
     if threads is not None:
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
-    opts = np.array([w, h, depth, max(int(rr_depth), 1), STRATEGIES[strategy], int(bool(jitter)),
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
+    opts = np.array([w, h, depth, rr_depth, STRATEGIES[strategy], int(bool(jitter)),
                      TILE, numba.get_num_threads(), int(bool(layers))], dtype=np.int64)
     try:
         t0 = time.perf_counter()
