@@ -14,16 +14,21 @@ A ``NAME`` value is a choice (``variant=gmd``) or a nested component (``fresnel=
 import json
 import re
 
+from .arguments import shown
 from .errors import SpecError
 
-__all__ = ["parse", "parse_component", "from_dict", "from_json"]
+__all__ = ["parse", "parse_component", "from_dict", "component_from_dict", "from_json"]
 
+# ASCII only: Python's \d and float() also take full-width and Arabic-Indic digits and
+# underscores between digits, which a spec written out by a program never holds
 _TOKEN = re.compile(r"""
-    (?P<ws>\s+)
-  | (?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf\b|nan\b)
+    (?P<ws>[ \t\r\n]+)
+  | (?P<number>[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?|[-+]?inf\b|nan\b)
   | (?P<name>[A-Za-z_][A-Za-z0-9_\-]*)
   | (?P<punct>[()\[\],=+])
-""", re.VERBOSE)
+""", re.VERBOSE | re.ASCII)
+#: What may follow a number: a separator, never more of a word or another point
+_AFTER_NUMBER = re.compile(r"[A-Za-z0-9_.]", re.ASCII)
 
 
 def _tokens(text):
@@ -31,8 +36,17 @@ def _tokens(text):
     while pos < len(text):
         m = _TOKEN.match(text, pos)
         if m is None:
-            raise SpecError(f"spec column {pos + 1}: unexpected character {text[pos]!r} "
+            char = text[pos]
+            hint = (" (numbers take the ASCII digits 0-9 only)" if char.isdigit()
+                    or char.isnumeric() else "")
+            raise SpecError(f"spec column {pos + 1}: unexpected character {char!r}{hint} "
                             f"in {text!r}")
+        if m.lastgroup == "number" and _AFTER_NUMBER.match(text, m.end()):
+            end = m.end()
+            while end < len(text) and (text[end].isalnum() or text[end] in "_."):
+                end += 1
+            raise SpecError(f"spec column {pos + 1}: malformed number {text[pos:end]!r}; "
+                            f"expected a number such as 1000, 0.5 or 1e-3 in {text!r}")
         if m.lastgroup != "ws":
             out.append((m.lastgroup, m.group(), pos))
         pos = m.end()
@@ -72,18 +86,25 @@ class _Parser:
             cls = registry.get(tok[1])
         except SpecError as exc:
             raise SpecError(f"spec column {tok[2] + 1}: {exc}") from None
-        args, kwargs = [], {}
+        args, kwargs, seen = [], {}, set()
         if self.peek()[1] == "(":
             self.take()
             while self.peek()[1] != ")":
                 if self.peek()[0] == "name" and self.toks[self.i + 1][1] == "=":
                     key = self.take()
                     self.take(value="=")
-                    kwargs[key[1]] = self.value(self.declaration(cls, key))
+                    decl = self.declaration(cls, key)
+                    if decl.name in seen:
+                        raise SpecError(f"spec column {key[2] + 1}: {cls.name}: {decl.name} is "
+                                        f"given twice in {self.text!r}")
+                    seen.add(decl.name)
+                    kwargs[key[1]] = self.value(decl)
                 elif kwargs:
                     self.fail(self.peek(), "expected NAME=value after a named argument")
                 else:
                     decl = cls.PARAMS[len(args)] if len(args) < len(cls.PARAMS) else None
+                    if decl is not None:
+                        seen.add(decl.name)
                     args.append(self.value(decl))
                 if self.peek()[1] != ")":
                     self.take(value=",")
@@ -150,18 +171,44 @@ def parse_component(text, registry):
 def from_dict(d):
     """Model from :meth:`~brdf.models.base.Component.to_dict` output."""
     from .models import MODELS, Sum
+    if isinstance(d, dict) and "sum" in d:
+        lobes = d["sum"]
+        if not isinstance(lobes, list) or not all(isinstance(x, dict) and "sum" not in x
+                                                  for x in lobes):
+            raise SpecError(f"a sum's 'sum' must be a list of model descriptions "
+                            f"{{\"model\": name, \"params\": {{...}}}}, got {shown(lobes)}")
+        return Sum([component_from_dict(x, MODELS) for x in lobes])
+    return component_from_dict(d, MODELS)
+
+
+def component_from_dict(d, registry):
+    """A component of ``registry`` from ``{"model": name, "params": {name: value}}``."""
     if not isinstance(d, dict):
-        raise SpecError(f"a model description must be an object, got {type(d).__name__}")
-    if "sum" in d:
-        return Sum([from_dict(x) for x in d["sum"]])
+        raise SpecError(f"a {registry.what} description must be an object, got "
+                        f"{type(d).__name__}")
     if "model" not in d:
-        raise SpecError("a model description needs a 'model' or 'sum' key")
-    return MODELS.get(d["model"])(**dict(d.get("params", {})))
+        raise SpecError(f"a {registry.what} description needs a 'model'" +
+                        (" or 'sum' key" if registry.what == "model" else " key"))
+    name, params = d["model"], d.get("params", {})
+    if not isinstance(name, str):
+        raise SpecError(f"a {registry.what} description's 'model' must be a name, got "
+                        f"{shown(name)}")
+    if not (isinstance(params, dict) and all(isinstance(k, str) for k in params)):
+        raise SpecError(f"{name}: 'params' must be an object {{name: value}}, got "
+                        f"{shown(params)}")
+    return registry.get(name)(**params)
 
 
 def from_json(text):
     """Model from a JSON string written by ``json.dumps(model.to_dict())``."""
+    if not isinstance(text, (str, bytes, bytearray)):
+        raise SpecError(f"model JSON must be text, got {type(text).__name__}")
     try:
-        return from_dict(json.loads(text))
+        document = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SpecError(f"model JSON line {exc.lineno} column {exc.colno}: {exc.msg}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"model JSON byte {exc.start}: not UTF-8 text") from None
+    except RecursionError:
+        raise SpecError("model JSON: nested too deeply to be a model description") from None
+    return from_dict(document)
