@@ -42,10 +42,10 @@ any model, and the command line takes a report file wherever it takes a MATERIAL
 
 import json
 import math
+import os
 from dataclasses import dataclass
-from pathlib import Path
 
-from ..errors import FormatError
+from ..errors import FormatError, InputError
 
 __all__ = ["SCHEMA", "FitReport", "load_report", "information_criteria"]
 
@@ -95,17 +95,30 @@ class FitReport:
 def load_report(path):
     """Read a JSON fit report (schema :data:`SCHEMA`) back; ``.model`` is the fitted model.
 
-    Raises FormatError naming the file and the place for text that is not JSON, another
-    schema, a missing key or a model description that does not parse.
+    Raises FormatError naming the file and the place for a folder or a file that cannot be
+    read, bytes that are not UTF-8, text that is not JSON or nests too deeply, another schema,
+    a missing key or a model description that does not parse.
     """
     from ..errors import BRDFError
+    from ..io import read_bytes
     from ..spec import from_dict
-    path = str(path)
-    text = Path(path).read_text(encoding="utf-8")
+    if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
+        raise InputError(f"load_report: path must be a non-empty file path, got {path!r}")
+    path = os.fspath(path)
+    data = read_bytes(path)  # a folder or an unreadable file is a one-line FormatError
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[:exc.start].count(b"\n") + 1
+        raise FormatError(path, f"line {line}", f"UTF-8 text of a JSON fit report (byte "
+                                                f"{exc.start} is not UTF-8)") from None
     try:
         document = json.loads(text)
     except json.JSONDecodeError as exc:
         raise FormatError(path, f"line {exc.lineno}", f"a JSON fit report ({exc.msg})") from None
+    except RecursionError:
+        raise FormatError(path, "", "a JSON fit report; its values are nested too deeply "
+                                    "to be one") from None
     if not isinstance(document, dict) or "schema" not in document:
         raise FormatError(path, "", f"a JSON object with \"schema\": \"{SCHEMA}\" (a fit report "
                                     "written by brdf-fit fit -o)")

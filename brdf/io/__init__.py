@@ -75,7 +75,7 @@ def formats():
 
 def _named(format):
     known = formats()
-    if format not in known:
+    if not isinstance(format, str) or format not in known:
         raise InputError(f"unknown format {format!r}; formats: {', '.join(sorted(known))}")
     return known[format]
 
@@ -119,8 +119,19 @@ def read(path, format=None, **options):
     -------
     brdf.table.Table
     """
-    module = _named(format) if format else format_of(path)
+    path = _path_argument(path, "read")
+    module = _named(format) if format is not None else format_of(path)
     return module.read(path, **options)
+
+
+def _path_argument(path, what):
+    """``path`` as a ``str`` if it is a non-empty path (``str`` or ``os.PathLike``)."""
+    text = os.fspath(path) if isinstance(path, os.PathLike) else path
+    if not isinstance(text, str) or not text or "\0" in text:
+        shown = repr(text) if isinstance(text, (str, bytes)) else type(path).__name__
+        raise InputError(f"{what}: path must be a non-empty file path (str or os.PathLike "
+                         f"without NUL characters), got {shown}")
+    return text
 
 
 def write(table, path, format=None, force=False):
@@ -128,7 +139,15 @@ def write(table, path, format=None, force=False):
 
     The file appears complete or not at all; an existing file is kept unless ``force``.
     """
-    module = _named(format) if format else format_of_output(path)
+    from ..table import Table
+    if not isinstance(table, Table):
+        hint = ("; write saves measured tables: measure the model first (brdf.measure) or save "
+                "its spec (str(model)) or model.to_dict()" if hasattr(table, "to_dict") else "")
+        raise InputError(f"write: table must be a brdf.Table, got {type(table).__name__}{hint}")
+    path = _path_argument(path, "write")
+    if not isinstance(force, bool):
+        raise InputError(f"write: force must be True or False, got {force!r}")
+    module = _named(format) if format is not None else format_of_output(path)
     if not hasattr(module, "write"):
         writable = sorted(name for name, m in formats().items() if hasattr(m, "write"))
         raise InputError(f"format {module.FORMAT} is read-only; write one of: "
