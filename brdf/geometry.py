@@ -6,6 +6,8 @@ angle ``theta`` from +z, azimuth ``phi`` from +x towards +y; radians throughout,
 through :func:`directions_from_degrees` and :func:`degrees_from_directions` at the I/O edge.
 """
 
+import math
+
 import numpy as np
 
 from .errors import InputError
@@ -14,7 +16,7 @@ __all__ = [
     "spherical_to_cartesian", "cartesian_to_spherical", "directions_from_degrees",
     "degrees_from_directions", "normalize", "frame_from_normal", "to_local", "to_world", "reflect",
     "half_vector", "half_diff_from_directions", "directions_from_half_diff", "rotate",
-    "direction_array", "flat_pairs",
+    "direction_array", "real_array", "uniform_array", "flat_pairs", "broadcast_shape", "UNIT_TOL",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -235,22 +237,91 @@ def directions_from_half_diff(theta_h, phi_h, theta_d, phi_d):
     return wi, reflect(wi, h)
 
 
+#: Largest accepted deviation of a direction's length from 1: vectors normalised in single
+#: precision (float32 data) stay within 3e-7; anything further was not normalised, and kernels
+#: that take it for a unit vector would return wrong values without a sign.
+UNIT_TOL = 1e-6
+_UNIT_SQ = ((1.0 - UNIT_TOL) ** 2, (1.0 + UNIT_TOL) ** 2)
+#: From this many directions on, a compiled loop screens their lengths (see brdf._directions).
+_COMPILED_ROWS = 1024
+
+
+def real_array(x, name):
+    """``x`` as a float64 array; InputError naming ``name`` if it is not an array of real
+    numbers (text, complex, ragged lists, None)."""
+    if type(x) is np.ndarray and x.dtype == np.float64:
+        return x
+    try:
+        arr = np.asarray(x)
+    except ValueError:  # ragged nested lists
+        raise InputError(f"{name} must be an array of numbers, got a ragged sequence") from None
+    if arr.dtype.kind not in "iuf":
+        raise InputError(f"{name} must hold real numbers, got dtype {arr.dtype}")
+    return arr.astype(np.float64, copy=False)
+
+
 def direction_array(x, name):
-    """``x`` as a float64 array of directions ``(..., 3)``; InputError naming ``name`` if not."""
-    arr = np.asarray(x, dtype=np.float64)
+    """``x`` as a float64 array of unit directions ``(..., 3)``; InputError naming ``name``
+    and the first offending row if it holds NaN or infinite values or a vector whose length is
+    further than :data:`UNIT_TOL` from 1 (a zero vector, an unnormalised one)."""
+    arr = real_array(x, name)
     if arr.ndim == 0 or arr.shape[-1] != 3:
         raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
-    # the sum is a cheap screen (NaN and inf propagate); only a non-finite sum needs the full test
-    if not np.isfinite(arr.sum()) and not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} holds NaN or infinite values")
+    if arr.size >= 3 * _COMPILED_ROWS and arr.flags.c_contiguous:
+        from ._directions import first_outside
+        k = first_outside(*_UNIT_SQ, arr.reshape(-1, 3))
+        if k >= 0:
+            _refuse_direction(arr, np.unravel_index(k, arr.shape[:-1]), name)
+    elif arr.size:
+        sq = np.einsum("...i,...i->...", arr, arr)
+        # NaN fails both comparisons, inf the second: one screen for all three
+        bad = ~((sq >= _UNIT_SQ[0]) & (sq <= _UNIT_SQ[1]))
+        if bad.any():
+            _refuse_direction(arr, tuple(np.argwhere(bad)[0]), name)
     return arr
+
+
+def _refuse_direction(arr, index, name):
+    k = tuple(int(i) for i in index)
+    where = f"{name}[{', '.join(map(str, k))}]" if k else name
+    v = arr[k]
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{where} = {v.tolist()} holds NaN or infinite values; expected a "
+                         "unit vector")
+    raise InputError(f"{where} = {v.tolist()} is not a unit vector: length "
+                     f"{math.hypot(*v.tolist()):.9g}, expected within {UNIT_TOL:g} of 1")
+
+
+def uniform_array(u, name="u"):
+    """``u`` as a float64 array of uniform numbers ``(..., 2)`` in ``[0, 1)`` (a sampler's
+    input); InputError naming ``name`` and the first offending entry otherwise."""
+    u = real_array(u, name)
+    if u.shape[-1:] != (2,):
+        raise InputError(f"{name} must be shaped (..., 2), got shape {u.shape}")
+    # NaN fails both comparisons
+    if u.size and not (u.min() >= 0.0 and u.max() < 1.0):
+        k = tuple(int(i) for i in np.argwhere(~((u >= 0.0) & (u < 1.0)))[0])
+        raise InputError(f"{name}[{', '.join(map(str, k))}] = {float(u[k])!r}; {name} must "
+                         "hold numbers in [0, 1)")
+    return u
 
 
 def flat_pairs(wi, wo):
     """Broadcast ``wi`` and ``wo`` together and flatten: ``(wi (n, 3), wo (n, 3), shape)``."""
     wi = direction_array(wi, "wi")
     wo = direction_array(wo, "wo")
-    shape = np.broadcast_shapes(wi.shape, wo.shape)[:-1]
+    shape = broadcast_shape(wi, wo, "wi", "wo")
     wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
     wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))
     return wi, wo, shape
+
+
+def broadcast_shape(a, b, name_a, name_b):
+    """The shape of ``a`` and ``b`` broadcast together, less the last axis (the vectors');
+    InputError naming both arguments' shapes if they do not broadcast."""
+    try:
+        return np.broadcast_shapes(a.shape[:-1], b.shape[:-1])
+    except ValueError:
+        raise InputError(f"{name_a} shaped {a.shape} and {name_b} shaped {b.shape} do not "
+                         f"broadcast together; expected the same leading shape, or one of them "
+                         f"a single vector") from None

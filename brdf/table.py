@@ -17,12 +17,14 @@ return tables; grid formats subclass :class:`Table` with their own lookup.
 """
 
 import math
+from collections.abc import Iterable, Mapping
 
 import numpy as np
 
+from .arguments import integer, shown
 from .errors import InputError
-from .geometry import (degrees_from_directions, direction_array, directions_from_degrees,
-                       flat_pairs)
+from .geometry import (broadcast_shape, degrees_from_directions, direction_array,
+                       directions_from_degrees, flat_pairs, real_array, uniform_array)
 
 __all__ = ["Table", "AngleTable", "ScatteredInterpolant", "regular_grid", "half_vector_rule",
            "channel_names_for"]
@@ -32,8 +34,9 @@ __all__ = ["Table", "AngleTable", "ScatteredInterpolant", "regular_grid", "half_
 HORIZON_SLACK = 1e-9
 #: Polar angle (radians) below which a direction's azimuth is taken as undefined.
 POLE_ANGLE = 1e-9
-#: Largest accepted deviation of |w| from 1 for sample directions.
-UNIT_TOL = 1e-6
+#: Largest ``resolution`` of :meth:`Table.albedo`: 2 n^2 half vectors per direction (2 million
+#: at 1024), each an interpolation.
+MAX_RESOLUTION = 1024
 
 
 def channel_names_for(channels, wavelengths=None):
@@ -90,11 +93,21 @@ class Table:
         if self._wi.shape != self._wo.shape:
             raise InputError(f"wi and wo must have the same shape, got {self._wi.shape} and "
                              f"{self._wo.shape}")
+        if not len(self._wi):
+            raise InputError("wi: a table needs at least one sample, got shape (0, 3)")
         self._values = _sample_values(values, "values", len(self._wi))
+        if np.isnan(self._values).all():
+            raise InputError(f"values: all {self._values.size} are NaN (missing); a table "
+                             "needs at least one measured value")
         self._sigma = None if sigma is None else _sample_values(sigma, "sigma", len(self._wi))
-        if self._sigma is not None and self._sigma.shape != self._values.shape:
-            raise InputError(f"sigma must be shaped like values {self._values.shape}, got "
-                             f"{self._sigma.shape}")
+        if self._sigma is not None:
+            if self._sigma.shape != self._values.shape:
+                raise InputError(f"sigma must be shaped like values {self._values.shape}, got "
+                                 f"{self._sigma.shape}")
+            if (self._sigma < 0.0).any():  # NaN (a missing sigma) passes
+                k, c = np.argwhere(self._sigma < 0.0)[0]
+                raise InputError(f"sigma[{k}, {c}] = {float(self._sigma[k, c])!r}; a standard "
+                                 "deviation must be >= 0 (NaN where missing)")
         self._init_common(self._values.shape[1], wavelengths, channel_names, isotropic,
                           metadata, source, name)
 
@@ -107,10 +120,18 @@ class Table:
                                                           (wavelengths > 0)):
                 raise InputError(f"wavelengths must be {channels} positive numbers (nm), got "
                                  f"{wavelengths.tolist()}")
+        if isinstance(channel_names, str) or not (
+                channel_names is None or isinstance(channel_names, Iterable)):
+            raise InputError(f"channel_names must be a list of {channels} names, got "
+                             f"{shown(channel_names)}")
         names = tuple(channel_names) if channel_names is not None else channel_names_for(
             channels, wavelengths)
-        if len(names) != channels:
-            raise InputError(f"channel_names must have {channels} entries, got {len(names)}")
+        if len(names) != channels or not all(isinstance(n, str) for n in names):
+            raise InputError(f"channel_names must be {channels} strings, got {shown(names)}")
+        if not (metadata is None or isinstance(metadata, Mapping)):
+            raise InputError(f"metadata must be a dict, got {shown(metadata)}")
+        if not (name is None or isinstance(name, str)):
+            raise InputError(f"name must be a string, got {shown(name)}")
         self._channels = int(channels)
         self.wavelengths = wavelengths
         self.channel_names = names
@@ -289,6 +310,7 @@ class Table:
         error : ndarray, shape (..., C)
             With ``return_error``: the difference from the same rule at half the resolution.
         """
+        resolution = integer(resolution, "albedo: resolution", 2, MAX_RESOLUTION)
         wi = direction_array(wi, "wi")
         shape = wi.shape[:-1]
         flat = wi.reshape(-1, 3)
@@ -316,9 +338,9 @@ class Table:
     # -- sampling (cosine-weighted; the renderer may importance-sample a fitted lobe instead) ----
     def sample(self, wi, u):
         """Cosine-weighted ``wo`` for each ``wi``: ``(wo, pdf)`` with pdf = cos(theta_o)/pi."""
-        u = np.asarray(u, dtype=float)
+        u = uniform_array(u, "u")
         wi = direction_array(wi, "wi")
-        shape = np.broadcast_shapes(wi.shape[:-1], u.shape[:-1])
+        shape = broadcast_shape(wi, u, "wi", "u")
         u = np.broadcast_to(u, shape + (2,))
         # a uniform point on the unit disk lifted to the hemisphere has density cos/pi
         # (Malley's method, PBR 4th ed. 13.6.3)
@@ -549,13 +571,9 @@ def _polar(w):
 
 
 def _sample_directions(x, name):
-    arr = direction_array(x, name)
+    arr = direction_array(x, name)  # unit vectors (within geometry.UNIT_TOL), finite
     if arr.ndim != 2:
         raise InputError(f"{name} must be shaped (N, 3), got shape {arr.shape}")
-    norm = np.linalg.norm(arr, axis=-1)
-    if len(arr) and np.max(np.abs(norm - 1.0)) > UNIT_TOL:
-        k = int(np.argmax(np.abs(norm - 1.0)))
-        raise InputError(f"{name}[{k}] is not a unit vector (length {norm[k]:.9g})")
     if len(arr) and arr[:, 2].min() < -HORIZON_SLACK:
         k = int(np.argmin(arr[:, 2]))
         raise InputError(f"{name}[{k}] = {arr[k].tolist()} is below the horizon (z < 0)")
@@ -563,7 +581,7 @@ def _sample_directions(x, name):
 
 
 def _sample_values(x, name, n):
-    arr = np.asarray(x, dtype=float)
+    arr = real_array(x, name)
     if arr.ndim == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[0] != n:

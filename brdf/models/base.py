@@ -12,8 +12,9 @@ import math
 
 import numpy as np
 
+from ..arguments import integer, real
 from ..errors import InputError, ParameterError, SpecError
-from ..geometry import direction_array, flat_pairs
+from ..geometry import broadcast_shape, direction_array, flat_pairs, uniform_array
 
 __all__ = ["Param", "Choice", "Nested", "Start", "Component", "Model", "Sum", "Compiled", "sample_inputs"]
 
@@ -113,11 +114,11 @@ class Nested:
         self.doc, self.aliases = doc, tuple(aliases)
 
     def coerce(self, value, where):
-        from ..spec import parse_component
+        from ..spec import component_from_dict, parse_component
         if isinstance(value, str):
             value = parse_component(value, self.registry)
         elif isinstance(value, dict) and "model" in value:
-            value = self.registry.get(value["model"])(**value.get("params", {}))
+            value = component_from_dict(value, self.registry)
         if not isinstance(value, Component) or value.name not in self.registry.names():
             raise ParameterError(f"{where}: {self.name} must be one of "
                                  f"{', '.join(self.registry.names())}; got {value!r}")
@@ -351,6 +352,13 @@ _GAUSS_RULES = (*_gauss_legendre_unit(6), *_gauss_legendre_unit(3))
 #: "rule" (just inside it, as samplers map the square's edges onto the horizon; an argument,
 #: not a global constant, whose read-only type would compile the panel kernel twice)
 _KERNEL_RULES = (*_GAUSS_RULES, np.array([1e-9, 1.0 - 1e-9]))
+#: Panels the albedo cubature starts from (``_kernels._refine``: a 4 x 4 grid): the least
+#: ``max_panels`` its arrays can hold.
+_INITIAL_PANELS = 16
+#: The most ``max_panels`` accepted: each thread allocates (4 + 2 C) * 8 bytes per panel
+#: (80 MB at a million panels and 3 channels), and a million panels (49 million samples for
+#: one direction) is far beyond what any tolerance needs.
+MAX_PANELS = 1 << 20
 
 
 class Model(Component):
@@ -413,7 +421,13 @@ class Model(Component):
 
     def compile(self, nch=None):
         """Kernel representation of this model with ``nch`` channels (default: its own)."""
-        nch = self.channels if nch is None else nch
+        if nch is None:
+            nch = self.channels
+        else:  # the kernels index nch channels of every per-channel block they are given
+            nch = integer(nch, "compile: nch", 1)
+            if self.channels not in (1, nch):
+                raise InputError(f"compile: nch={nch} but {self} has {self.channels} channels;"
+                                 " expected nch equal to it (or a 1-channel model)")
         return Compiled([lobe.kind for lobe in self.lobes],
                         [lobe.pack(nch) for lobe in self.lobes], nch)
 
@@ -494,6 +508,7 @@ class Model(Component):
             With ``return_error``: the summed panel error estimates, a conservative estimate of
             the absolute error.
         """
+        tol, max_panels = cubature_options(tol, max_panels)
         if not self.uses_kernels:
             from . import mixed
             out, err = mixed.albedo(self, wi, tol, max_panels)
@@ -522,6 +537,7 @@ class Model(Component):
         if not self.albedo_gradient_ready:
             raise InputError(f"albedo_gradient: {self} has a delta, multi-term or custom lobe; "
                              "differentiate its albedo numerically")
+        cubature_options(tol, max_panels, "albedo_gradient")
         out, _, _, grad = self._albedo_cubature(wi, tol, max_panels, gradient=True, nch=nch)
         return out, grad
 
@@ -533,6 +549,7 @@ class Model(Component):
         (default: the model's own)."""
         import numba
         from . import _kernels
+        tol, max_panels = cubature_options(tol, max_panels)
         wi = direction_array(wi, "wi")
         shape = wi.shape[:-1]
         flat = wi.reshape(-1, 3)
@@ -550,7 +567,7 @@ class Model(Component):
         dealt = (np.zeros((n, c.nch)), np.zeros((n, c.nch)), np.zeros(n, dtype=np.int64))
         grad = np.zeros((n, len(c.params), c.nch) if gradient else (1, 0, c.nch))
         _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _KERNEL_RULES,
-                              float(tol), int(max_panels), *dealt, grad)
+                              tol, max_panels, *dealt, grad)
         out, err, panels = (np.empty_like(a) for a in dealt)
         for mine, theirs in zip((out, err, panels), dealt):
             mine[deal] = theirs
@@ -569,15 +586,20 @@ def sample_inputs(wi, u):
     """Validated ``wi`` and uniform numbers ``u`` broadcast together and flattened:
     ``(wi (n, 3), u (n, 2), shape)``."""
     wi = direction_array(wi, "wi")
-    u = np.asarray(u, dtype=np.float64)
-    if u.shape[-1:] != (2,):
-        raise InputError(f"u must be shaped (..., 2), got shape {u.shape}")
-    if np.any(~np.isfinite(u)) or np.any(u < 0.0) or np.any(u >= 1.0):
-        raise InputError("u must hold numbers in [0, 1)")
-    shape = np.broadcast_shapes(wi.shape[:-1], u.shape[:-1])
+    u = uniform_array(u, "u")
+    shape = broadcast_shape(wi, u, "wi", "u")
     wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
     u = np.ascontiguousarray(np.broadcast_to(u, shape + (2,)).reshape(-1, 2))
     return wi, u, shape
+
+
+def cubature_options(tol, max_panels, what="albedo"):
+    """``(tol, max_panels)`` of an albedo cubature, checked: the kernel starts from
+    :data:`_INITIAL_PANELS` panels in arrays of ``max_panels`` rows and does not check their
+    bounds, so fewer rows would be written past."""
+    tol = real(tol, f"{what}: tol", 0.0, low_open=True)
+    max_panels = integer(max_panels, f"{what}: max_panels", _INITIAL_PANELS, MAX_PANELS)
+    return tol, max_panels
 
 
 class Sum(Model):

@@ -39,7 +39,8 @@ import numpy as np
 from ..errors import InputError, SpecError
 from ..geometry import direction_array, flat_pairs
 from ._registry import MODELS
-from .base import _GAUSS_RULES, Choice, Model, Nested, Param, _gauss_legendre_unit, sample_inputs
+from .base import (_GAUSS_RULES, Choice, Model, Nested, Param, _gauss_legendre_unit,
+                   cubature_options, sample_inputs)
 
 __all__ = ["CustomModel", "register_model", "unregister_model", "load_plugin", "plugin_sources",
            "ensure_plugins",
@@ -216,9 +217,10 @@ class CustomModel(Model):
             error (a jump of the integrand inside a panel, e.g. where a custom sampler's samples
             fall below the horizon, may escape it).
         """
+        tol, max_panels = cubature_options(tol, max_panels)
         wi = direction_array(wi, "wi")
         shape = wi.shape[:-1]
-        out, err = _cubature(self, wi.reshape(-1, 3), float(tol), int(max_panels))
+        out, err = _cubature(self, wi.reshape(-1, 3), tol, max_panels)
         out = out.reshape(shape + (self.channels,))
         err = err.reshape(out.shape)
         return (out, err) if return_error else out
