@@ -288,7 +288,7 @@ def _refuse_direction(arr, index, name):
     if not np.all(np.isfinite(v)):
         raise InputError(f"{where} = {v.tolist()} holds NaN or infinite values; expected a "
                          "unit vector")
-    raise InputError(f"{where} = {v.tolist()} is not a unit vector: length "
+    raise InputError(f"{where} is not a unit vector: {v.tolist()} has length "
                      f"{math.hypot(*v.tolist()):.9g}, expected within {UNIT_TOL:g} of 1")
 
 
