@@ -29,7 +29,9 @@ class Simplices:
         self.varying = np.ptp(points, axis=0) > self.FLAT
         self.constant = points[0, ~self.varying]
         points = np.ascontiguousarray(points[:, self.varying])
-        self.nearest = cKDTree(points)
+        # samples that all sit at one place (a single sample, say) vary along no coordinate:
+        # every query's nearest sample is then the first
+        self.nearest = cKDTree(points) if points.shape[1] else None
         self.delaunay = None
         self.line = None
         if method == "linear" and points.shape[1] == 1 and len(points) > 1:
@@ -60,6 +62,8 @@ class Simplices:
         n, d = q.shape
         if self.line is not None:
             return self._locate_on_line(q[:, 0])
+        if self.nearest is None:
+            return np.zeros((n, 1), np.intp), np.ones((n, 1)), np.ones(n, dtype=bool)
         if self.delaunay is None:
             _, idx = self.nearest.query(q)
             return idx[:, None], np.ones((n, 1)), np.ones(n, dtype=bool)

@@ -40,7 +40,6 @@ A report loads back with :func:`load_report`; its ``.model`` renders, plots and 
 any model, and the command line takes a report file wherever it takes a MATERIAL.
 """
 
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -100,25 +99,13 @@ def load_report(path):
     a missing key or a model description that does not parse.
     """
     from ..errors import BRDFError
-    from ..io import read_bytes
+    from ..io.files import read_json
     from ..spec import from_dict
     if not isinstance(path, (str, os.PathLike)) or not os.fspath(path):
         raise InputError(f"load_report: path must be a non-empty file path, got {path!r}")
     path = os.fspath(path)
-    data = read_bytes(path)  # a folder or an unreadable file is a one-line FormatError
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise FormatError(path, f"line {line}", f"UTF-8 text of a JSON fit report (byte "
-                                                f"{exc.start} is not UTF-8)") from None
-    try:
-        document = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FormatError(path, f"line {exc.lineno}", f"a JSON fit report ({exc.msg})") from None
-    except RecursionError:
-        raise FormatError(path, "", "a JSON fit report; its values are nested too deeply "
-                                    "to be one") from None
+    # a regular file, UTF-8, at most 64 MB, nested at most 100 levels (brdf.io.files)
+    document = read_json(path, 64 << 20, "a JSON fit report")
     if not isinstance(document, dict) or "schema" not in document:
         raise FormatError(path, "", f"a JSON object with \"schema\": \"{SCHEMA}\" (a fit report "
                                     "written by brdf-fit fit -o)")

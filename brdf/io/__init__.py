@@ -5,7 +5,9 @@ is unknown or shared by several formats; :func:`write` picks it from the output'
 writes atomically (a temporary file in the same folder, then a rename), never replacing an
 existing file unless ``force=True``. Each format is one module of this package defining
 ``FORMAT``, ``EXTENSIONS``, ``sniff(head)``, ``read(path)`` and, when it can store tables,
-``write(table, path)``.
+``write(table, path)``; ``EXTENSION_FALLBACK = True`` marks the reader of a shared extension
+that reads (and reports the errors of) files of that extension whose content no format
+recognises.
 
 >>> import brdf
 >>> sorted(brdf.io.formats())[:3]
@@ -14,12 +16,11 @@ existing file unless ``force=True``. Each format is one module of this package d
 
 import hashlib
 import importlib
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import FormatError, InputError, OutputError
+from ..errors import FormatError, InputError
+from .files import atomic_output, read_bytes, read_head
 
 __all__ = ["read", "write", "formats", "format_of", "Source", "source_of", "read_bytes",
            "atomic_output"]
@@ -55,18 +56,6 @@ def source_of(path, data, format):
     return Source(str(path), hashlib.sha256(data).hexdigest(), format, len(data))
 
 
-def read_bytes(path):
-    """The whole file as bytes; a missing or unreadable file is a :class:`FormatError`."""
-    try:
-        return Path(path).read_bytes()
-    except IsADirectoryError:
-        raise FormatError(path, "", "is a folder; expected a data file") from None
-    except FileNotFoundError:
-        raise FormatError(path, "", "no such file") from None
-    except OSError as e:
-        raise FormatError(path, "", f"cannot be read ({e.strerror})") from None
-
-
 def formats():
     """``{format name: module}`` of every registered format."""
     modules = (importlib.import_module(f"{__name__}.{m}") for m in _MODULES)
@@ -91,14 +80,15 @@ def format_of(path, head=None):
     if len(by_extension) == 1:
         return by_extension[0]
     if head is None:
-        try:
-            with open(path, "rb") as f:
-                head = f.read(SNIFF_BYTES)
-        except OSError:
-            read_bytes(path)  # raises the one-line error for a missing or unreadable file
+        head = read_head(path, SNIFF_BYTES)
     for module in by_extension or known.values():
         if module.sniff(head):
             return module
+    # the extension names formats but the content matches none: the extension's general
+    # reader says what is wrong (a misspelt column, say), not "unrecognised format"
+    fallback = [m for m in by_extension if getattr(m, "EXTENSION_FALLBACK", False)]
+    if fallback:
+        return fallback[0]
     extensions = sorted({e for m in known.values() for e in m.EXTENSIONS})
     raise FormatError(path, "", f"unrecognised format (extension {suffix or 'none'!r}, content "
                                 f"matches none); known extensions: {', '.join(extensions)}")
@@ -168,35 +158,3 @@ def format_of_output(path):
         raise InputError(f"{path}: cannot tell the format from the extension "
                          f"{suffix or '(none)'!r}; use one of {', '.join(extensions)}")
     return candidates[0]
-
-
-class atomic_output:
-    """Context manager yielding a temporary path next to ``path``; on success the temporary
-    file replaces ``path``, on failure it is removed. Refuses an existing ``path`` unless
-    ``force``. The temporary name keeps the extension so writers that look at it still work."""
-
-    def __init__(self, path, force=False):
-        self.path = Path(path)
-        self.force = force
-
-    def __enter__(self):
-        if self.path.exists() and not self.force:
-            raise OutputError(f"{self.path}: exists; pass --force (force=True) to replace it")
-        if not self.path.parent.is_dir():
-            raise OutputError(f"{self.path}: folder {self.path.parent} does not exist")
-        fd, name = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=self.path.suffix,
-                                    dir=self.path.parent)
-        os.close(fd)
-        # mkstemp makes the file private (0600); give it the permissions a plain open() would
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(name, 0o666 & ~mask)
-        self.tmp = Path(name)
-        return self.tmp
-
-    def __exit__(self, kind, value, traceback):
-        if kind is None:
-            os.replace(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-        return False

@@ -59,6 +59,10 @@ def floats(path, tokens, locate):
         At the first token that is not a number, or is NaN or infinite.
     """
     try:
+        # float() also takes other scripts' digits, full-width ones and underscores
+        joined = "".join(tokens)
+        if not joined.isascii() or "_" in joined:
+            raise ValueError(joined)
         values = np.array(tokens, dtype=np.float64)
     except ValueError:
         k = next(k for k, t in enumerate(tokens) if not is_number(t))
@@ -74,10 +78,18 @@ def floats(path, tokens, locate):
     return values
 
 
+def parse_float(token):
+    """``float(token)`` for decimal notation in ASCII only (``float`` also takes other scripts'
+    digits, full-width digits and underscores, which no data file means); ValueError otherwise."""
+    if not token.isascii() or "_" in token:
+        raise ValueError(token)
+    return float(token)
+
+
 def is_number(token):
-    """Whether ``float`` accepts ``token``."""
+    """Whether :func:`parse_float` accepts ``token``."""
     try:
-        float(token)
+        parse_float(token)
     except ValueError:
         return False
     return True

@@ -23,6 +23,7 @@ from ..errors import FormatError
 from ..geometry import spherical_to_cartesian
 from ..table import Table
 from . import _text, read_bytes, source_of
+from .files import MAX_BYTES
 
 FORMAT = "cornell"
 EXTENSIONS = (".brdf",)
@@ -68,7 +69,7 @@ def read(path):
         number, an angle out of range, no records, or an incomplete last record (naming the line
         where it starts).
     """
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "a Cornell .brdf file")
     lines = _text.decode_lines(path, data, _EXPECTED)
     tokens, token_lines, comments = _tokens(lines)
     if not tokens:

@@ -26,6 +26,7 @@ from ..errors import FormatError, InputError
 from ..geometry import spherical_to_cartesian
 from ..table import Table
 from . import SNIFF_BYTES, _text, read_bytes, source_of
+from .files import MAX_BYTES
 
 FORMAT = "curet"
 # ".dat" is too generic to claim: CUReT files are recognised by content
@@ -111,9 +112,9 @@ def _load(path, geometry):
         raise FormatError(table_path, "", f"CUReT geometry table not found; expected "
                                           f"{GEOMETRY_FILE} next to {Path(path).name} (or pass "
                                           "geometry=PATH)")
-    table_data = read_bytes(table_path)
+    table_data = read_bytes(table_path, MAX_BYTES, "a CUReT geometry table")
     angles = _geometry(table_path, table_data)
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "a CUReT abrdf.dat file")
     values = _values(path, data, len(angles), table_path.name)
     metadata = {
         "units": "1/sr (not stated in the file; CUReT derives BRDF from calibrated radiance)",

@@ -54,6 +54,8 @@ import numpy as np
 from ..errors import FormatError, InputError
 from ..table import HORIZON_SLACK, AngleTable
 from . import read_bytes, source_of
+from .files import MAX_BYTES
+from . import _text
 from ._text import decode_lines
 
 __all__ = ["read", "write", "sniff", "provenance_metadata", "above_horizon",
@@ -61,6 +63,8 @@ __all__ = ["read", "write", "sniff", "provenance_metadata", "above_horizon",
 
 FORMAT = "gonio-csv"
 EXTENSIONS = (".csv",)
+#: A .csv that no format's sniff recognises is read as a gonio CSV, whose errors say why.
+EXTENSION_FALLBACK = True
 
 ANGLES = ("theta_i", "phi_i", "theta_o", "phi_o")
 SINGLE, SINGLE_SIGMA = ("brdf",), ("sigma",)
@@ -137,7 +141,7 @@ def read(path):
         On the first violation of the rules, naming the line (and the byte offset for text that
         is not UTF-8) and what was expected.
     """
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "a gonioreflectometer CSV file")
     lines = decode_lines(path, data, f"a header line naming the columns ({LAYOUTS_TEXT})")
     metadata, key_lines, header = _preamble(lines, path)
     isotropic = _isotropic(metadata, key_lines, path)
@@ -281,7 +285,7 @@ def _parse_line(text, line, names, path):
             raise FormatError(path, f"line {line}", f"empty value in column {name}; expected a "
                                                     "number (leave out samples not measured)")
         try:
-            numbers.append(float(field))
+            numbers.append(_text.parse_float(field))
         except ValueError:
             raise FormatError(path, f"line {line}", f"{name} = {field!r} is not a number; "
                                                     "expected a decimal number") from None

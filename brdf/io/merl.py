@@ -25,8 +25,8 @@ from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
 from ..table import HORIZON_SLACK, Table, _sample_values
 from . import read_bytes, source_of
 
-__all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "write", "MerlTable", "grid_directions",
-           "grid_angles", "fill_missing", "SHAPE", "SCALE"]
+__all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "write", "MerlTable", "check_rgb",
+           "grid_directions", "grid_angles", "fill_missing", "SHAPE", "SCALE"]
 
 FORMAT = "merl"
 EXTENSIONS = (".binary",)
@@ -69,7 +69,7 @@ def read(path):
         Wrong dimensions, truncated or oversized file, NaN or infinite stored values; the
         message names the byte offset.
     """
-    data = read_bytes(path)
+    data = read_bytes(path, FILE_BYTES, "a MERL .binary file")
     raw = _parse(path, data)
     return MerlTable(raw, source=source_of(path, data, FORMAT))
 
@@ -88,7 +88,20 @@ def _parse(path, data):
     raw = np.frombuffer(data, dtype="<f8", offset=HEADER_BYTES).reshape((3,) + SHAPE)
     if not np.isfinite(raw).all():
         raise FormatError(path, *_non_finite(raw))
+    check_measured(path, raw, f"byte {HEADER_BYTES}")
     return raw
+
+
+def check_measured(path, raw, where):
+    """Raise :class:`FormatError` at ``where`` if a channel of the stored array ``raw``
+    ``(3, 90, 90, 180)`` holds no measured value (all negative: missing); such a table has
+    nothing to interpolate, check or fit."""
+    measured = (raw >= 0.0).reshape(3, -1).any(axis=1)
+    if not measured.all():
+        c = int(np.argmin(measured))
+        raise FormatError(path, where, f"every stored value of channel {CHANNELS[c]} is "
+                                       "negative (missing); expected at least one measured "
+                                       "value per channel")
 
 
 def _dims_message(dims):
@@ -131,6 +144,16 @@ def write(table, path):
     with open(path, "wb") as f:
         f.write(_HEADER)
         table.raw.astype("<f8", copy=False).tofile(f)
+
+
+def check_rgb(subject):
+    """Raise :class:`InputError` unless ``subject`` (a table or model) has exactly 3 channels
+    that are not wavelengths: what a MERL file can store as r, g, b."""
+    channels = getattr(subject, "channels", None)
+    if channels != 3 or getattr(subject, "wavelengths", None) is not None:
+        kind = "spectral" if getattr(subject, "wavelengths", None) is not None else "non-RGB"
+        raise InputError(f"MERL stores RGB (3 channels r, g, b); {subject} is {kind} with "
+                         f"{channels} channel(s): write it as .npz or .csv instead")
 
 
 # --- the grid -----------------------------------------------------------------------------------
@@ -243,11 +266,7 @@ class MerlTable(Table):
         brdf.errors.InputError
             When ``table`` does not have exactly 3 non-spectral channels.
         """
-        channels = getattr(table, "channels", None)
-        if channels != 3 or getattr(table, "wavelengths", None) is not None:
-            kind = "spectral" if getattr(table, "wavelengths", None) is not None else "non-RGB"
-            raise InputError(f"MERL stores RGB (3 channels r, g, b); {table} is {kind} with "
-                             f"{channels} channel(s): write it as .npz or .csv instead")
+        check_rgb(table)
         wi, wo = grid_directions()
         measurable = ~_unmeasurable()
         values = np.full((SIZE, 3), np.nan)

@@ -29,6 +29,7 @@ from ..errors import FormatError
 from ..geometry import directions_from_degrees
 from ..table import Table
 from . import _text, read_bytes, source_of
+from .files import MAX_BYTES
 
 FORMAT = "nist-ptfe"
 # .csv is shared with the gonioreflectometer CSV: the header decides (sniff)
@@ -71,7 +72,7 @@ def read(path):
         number, an angle out of range, a non-positive wavelength, or a geometry listed twice at
         one wavelength.
     """
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "a NIST PTFE file")
     lines = _text.decode_lines(path, data, _EXPECTED)
     _check_header(path, lines[0])
     rows = _numbers(path, lines[1:])

@@ -38,14 +38,17 @@ trips; a lab archiving files can compress them with any tool.
 
 import io
 import json
+import math
 import zipfile
+import zlib
 
 import numpy as np
 
-from ..errors import FormatError, InputError
+from ..errors import BRDFError, FormatError, InputError
 from ..geometry import directions_from_degrees
 from ..table import AngleTable, Table
 from . import read_bytes, source_of
+from .files import MAX_BYTES
 from .gonio_csv import above_horizon, provenance_metadata
 
 __all__ = ["read", "write", "sniff", "FORMAT", "EXTENSIONS", "FORMAT_VERSION"]
@@ -135,7 +138,7 @@ def read(path):
         lacks arrays (all named), has arrays of the wrong shape or type, non-finite directions
         or angles, or a format version newer than :data:`FORMAT_VERSION`.
     """
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "a .npz table")
     arrays = _arrays(data, path)
     version = _array(arrays, "format_version", path, "iu", (), "()")
     if not 1 <= int(version) <= FORMAT_VERSION:
@@ -174,11 +177,12 @@ def read(path):
 
 def _merl_table(arrays, path, data):
     """The MERL grid layout back as a :class:`~brdf.io.merl.MerlTable`."""
-    from .merl import SHAPE, SIZE, MerlTable
+    from .merl import SHAPE, SIZE, MerlTable, check_measured
     raw = _array(arrays, "merl_raw", path, "f", (3,) + SHAPE, f"(3,) + {SHAPE}")
     if not np.isfinite(raw).all():
         raise FormatError(path, "array merl_raw", "holds NaN or infinite values; expected "
                                                   "finite stored values (negative = missing)")
+    check_measured(path, raw, "array merl_raw")
     sigma = (_array(arrays, "sigma", path, "f", (SIZE, 3), f"({SIZE}, 3)")
              if "sigma" in arrays else None)
     metadata = _metadata(arrays, path)
@@ -210,10 +214,42 @@ def _arrays(data, path):
         return {name: _member(archive, name, path) for name in archive.files}
 
 
+#: Largest total of the arrays unpacked from one .npz (a MERL grid with sigma is 70 MB).
+MAX_UNPACKED = 4 << 30
+
+
+def _check_member_size(archive, name, path):
+    """Refuse, before numpy allocates it, an array whose header declares more bytes than its
+    member holds (a corrupt header would allocate any size) or more than memory can hold."""
+    from ..memory import require
+    info = archive.zip.getinfo(f"{name}.npy")
+    with archive.zip.open(info) as f:
+        version = np.lib.format.read_magic(f)
+        read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                       else np.lib.format.read_array_header_2_0)
+        shape, _, dtype = read_header(f)
+        header = f.tell()
+    nbytes = math.prod(shape) * dtype.itemsize
+    if nbytes > info.file_size - header:
+        raise FormatError(path, f"array {name}", f"its header declares shape {shape} "
+                                                 f"({nbytes:,} bytes) but the member holds "
+                                                 f"{info.file_size - header:,} bytes")
+    if nbytes > MAX_UNPACKED:
+        raise FormatError(path, f"array {name}", f"{nbytes:,} bytes unpacked; a .npz table "
+                                                 f"holds at most {MAX_UNPACKED:,}")
+    require(nbytes, f"{path}: array {name}")
+
+
 def _member(archive, name, path):
     try:
+        _check_member_size(archive, name, path)
         return archive[name]
-    except (zipfile.BadZipFile, ValueError, EOFError, OSError) as e:
+    except BRDFError:
+        raise
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError, zlib.error, NotImplementedError,
+            RuntimeError) as e:
+        # zlib.error: corrupt compressed data; NotImplementedError: an unknown compression
+        # method; RuntimeError: an encrypted member
         # ValueError includes "Object arrays cannot be loaded when allow_pickle=False"
         raise FormatError(path, f"array {name}", f"cannot be read ({e})") from None
 

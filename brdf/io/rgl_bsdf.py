@@ -47,12 +47,15 @@ from ..errors import FormatError, InputError
 from ..geometry import flat_pairs, reflect, spherical_to_cartesian
 from ..table import Table
 from . import read_bytes, source_of
+from .files import MAX_BYTES
 
 __all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "RglTable", "parse_tensor_file",
            "warp_tables", "warp_forward"]
 
 FORMAT = "rgl-bsdf"
 EXTENSIONS = (".bsdf",)
+#: Most dimensions a field may have (numpy's arrays have at most 64).
+MAX_RANK = 32
 
 MAGIC = b"tensor_file\x00"
 #: Magic, version (major, minor), field count.
@@ -123,7 +126,7 @@ def read(path, clip=True):
         trailing bytes), missing or misshapen fields, NaN or infinite numbers, non-UTF-8 text,
         anisotropic materials; the message names the byte offset and the field.
     """
-    data = read_bytes(path)
+    data = read_bytes(path, MAX_BYTES, "an RGL .bsdf tensor file")
     fields = parse_tensor_file(path, data)
     return _table_from_fields(path, fields, clip, source_of(path, data, FORMAT))
 
@@ -178,6 +181,10 @@ def _field_entry(path, data, pos, k, count):
                           f"field name {raw_name!r} is not UTF-8") from None
     ndim, code, offset = take(_ENTRY, f"the dimensions, data type and offset of {name!r}")
     dtype_at = pos - 9
+    if ndim > MAX_RANK:
+        raise FormatError(path, f"byte {dtype_at - 2}",
+                          f"field {name!r} has {ndim} dimensions; expected at most {MAX_RANK} "
+                          "(the fields of a BSDF have at most 5)")
     shape = tuple(take(_EXTENT, f"extent {d + 1} of {name!r}")[0] for d in range(ndim))
     if code not in DTYPES:
         known = ", ".join(f"{c} {t}" for c, t in DTYPES.items())
@@ -257,7 +264,7 @@ def _finite(path, field):
     if a.dtype.kind != "f":
         return a
     a = a.astype(np.float64)
-    if not np.isfinite(a.sum()):  # NaN and inf propagate into the sum: one cheap screen
+    if not np.isfinite(a).all():
         n = int(np.flatnonzero(~np.isfinite(a.reshape(-1)))[0])
         index = tuple(int(i) for i in np.unravel_index(n, a.shape))
         raise FormatError(path, f"byte {field.offset + n * field.array.itemsize}",

@@ -23,12 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, InputError
+from ..errors import FormatError
+from ..io._text import parse_float
 
 __all__ = ["read_ies"]
 
 #: Photometric type of Type C goniometry (LM-63-2002, section 5.6)
 TYPE_C = 1
+#: Largest IES file read: 16 MB (a 1-degree grid over the sphere is 65,000 numbers, 500 kB).
+IES_BYTES = 16 << 20
 _NUMBER = re.compile(r"[^\s,]+")
 
 
@@ -56,13 +59,11 @@ def read_ies(path):
         For a file that is not LM-63 Type C with ``TILT=NONE``, or whose numbers are missing,
         malformed or out of range; the message names the file and line.
     """
+    from ..io.files import read_bytes
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such IES file")
-    try:
-        lines = path.read_text(encoding="latin-1").splitlines()
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    # LM-63 files are ASCII; latin-1 decodes any byte, so a stray one is reported where it
+    # breaks a number
+    lines = read_bytes(path, IES_BYTES, "an IES LM-63 file").decode("latin-1").splitlines()
     tokens = _tokens_after_tilt(path, lines)
     header = _take(path, tokens, 13, "the 13 numbers of the lamp and ballast header")
     (n_lamps, _lumens, multiplier, n_v, n_h, ptype, _units, _w, _l, _h, _ballast, _future,
@@ -122,7 +123,7 @@ def _take(path, tokens, n, what):
     out = []
     for tok, line in tokens[:n]:
         try:
-            value = float(tok)
+            value = parse_float(tok)
         except ValueError:
             raise FormatError(path, line, f"expected a number ({what}), got {tok!r}") from None
         if not np.isfinite(value):

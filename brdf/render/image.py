@@ -1,5 +1,6 @@
 """Images: OpenEXR and PNG reading and writing, tone mapping, and image-difference metrics."""
 
+import math
 import os
 from pathlib import Path
 
@@ -24,6 +25,10 @@ def _srgb_encode(c):
     return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1.0 / 2.4) - 0.055)
 
 
+#: Largest image file read: 4 GB (a 16384 x 16384 float32 RGBA EXR, uncompressed).
+IMAGE_BYTES = 4 << 30
+
+
 def read_image(source, what="image", channels=None, srgb=True):
     """A float image ``(h, w, c)`` from an EXR or PNG path or an array.
 
@@ -35,6 +40,8 @@ def read_image(source, what="image", channels=None, srgb=True):
         path = Path(source)
         if not path.exists():
             raise InputError(f"{path}: {what}: no such file")
+        from ..io.files import check_file
+        check_file(path, IMAGE_BYTES, f"an image ({what})")
         suffix = path.suffix.lower()
         if suffix == ".exr":
             img = _read_exr(path)
@@ -112,7 +119,15 @@ def write_exr(path, rgb, layers=None, force=False):
 
 
 def tonemap(rgb, exposure=0.0):
-    """Linear radiance to 8-bit sRGB: scale by 2^exposure, clip, sRGB-encode."""
+    """Linear radiance to 8-bit sRGB: scale by 2^exposure, clip, sRGB-encode. ``exposure`` is
+    a finite number of stops within +-64 (beyond, every pixel is black or white)."""
+    try:
+        stops = float(exposure)
+    except (TypeError, ValueError):
+        stops = math.nan
+    if not (math.isfinite(stops) and -64.0 <= stops <= 64.0):
+        raise InputError(f"exposure: expected a finite number of stops in [-64, 64], got "
+                         f"{exposure!r}")
     return np.round(_srgb_encode(np.asarray(rgb, float) * 2.0 ** exposure) * 255.0).astype(
         np.uint8)
 
