@@ -21,19 +21,35 @@ __all__ = ["Camera", "Sphere", "Quad", "Mesh", "box", "rectangle", "Material", "
            "SpotLight", "DirectionalLight", "GoniometricLight", "Environment", "Scene"]
 
 
+def _floats(x):
+    """``x`` as a flat float array, or None when it holds something other than numbers."""
+    try:
+        return np.asarray(x, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        return None
+
+
+def _number(x, name):
+    """``x`` as a finite float."""
+    a = _floats(x)
+    if a is None or a.shape != (1,) or not np.isfinite(a[0]):
+        raise InputError(f"{name}: expected a finite number, got {x!r}")
+    return float(a[0])
+
+
 def _vec(x, name, n=3):
-    a = np.asarray(x, dtype=float).reshape(-1)
-    if a.shape != (n,) or not np.all(np.isfinite(a)):
+    a = _floats(x)
+    if a is None or a.shape != (n,) or not np.all(np.isfinite(a)):
         raise InputError(f"{name}: expected {n} finite numbers, got {x!r}")
     return a
 
 
 def _colour(x, name):
     """An RGB triple from one number (grey) or three, non-negative and finite."""
-    a = np.asarray(x, dtype=float).reshape(-1)
-    if a.size == 1:
+    a = _floats(x)
+    if a is not None and a.size == 1:
         a = np.repeat(a, 3)
-    if a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(a < 0):
+    if a is None or a.shape != (3,) or not np.all(np.isfinite(a)) or np.any(a < 0):
         raise InputError(f"{name}: expected one or three non-negative numbers, got {x!r}")
     return a
 
@@ -70,7 +86,7 @@ class Camera:
             raise InputError("camera: up is parallel to the viewing direction")
         right /= np.linalg.norm(right)
         up = np.cross(right, fwd)
-        if not 0.0 < float(self.fov) < 180.0:
+        if not 0.0 < _number(self.fov, "camera fov") < 180.0:
             raise InputError(f"camera fov: expected degrees in (0, 180), got {self.fov}")
         axis = {"smaller": "x" if width <= height else "y",
                 "larger": "x" if width >= height else "y"}.get(self.fov_axis, self.fov_axis)
@@ -89,13 +105,16 @@ class Material:
     """A BRDF for the renderer: a model, spec, fit report path or measured table, with optional
     textures ``{"lobe.param": image}`` (a path to an EXR or PNG, or an array (h, w[, c]));
     per-channel parameters read the image's channels, scalar ones its first channel. Values
-    are clipped to the parameter's declared bounds."""
+    are clipped to the parameter's declared bounds. ``name`` labels it in error messages."""
 
     brdf: object
     textures: dict = field(default_factory=dict)
+    name: str = field(default=None, compare=False)
 
     def resolve(self):
-        """The model or table behind ``brdf``."""
+        """The model or table behind ``brdf``: a string ending in ``.json`` is a fit report,
+        one naming an existing file or ending in a table format's extension a table (so a
+        missing file is reported as missing), anything else a spec."""
         from ..models.base import Model
         from ..table import Table
         b = self.brdf
@@ -103,15 +122,27 @@ class Material:
             return b
         if isinstance(b, str):
             from ..spec import parse
-            if b.lower().endswith(".json"):
+            if names_file(b) and b.lower().endswith(".json"):
                 from ..fitting import load_report
                 return load_report(b).model
-            import os
-            if os.path.exists(b):
+            if names_file(b):
                 from ..io import read
                 return read(b)
             return parse(b)
         raise InputError(f"material: expected a model, spec, report or table, got {b!r}")
+
+
+def names_file(text):
+    """Whether the material string ``text`` names a file rather than a spec: it exists, or it
+    ends in ``.json`` or a table format's extension, with no parenthesis."""
+    import os
+    from pathlib import Path
+    from ..io import formats
+    if "(" in text:
+        return False
+    suffix = Path(text).suffix.lower()
+    return os.path.exists(text) or suffix == ".json" or any(
+        suffix in m.EXTENSIONS for m in formats().values())
 
 
 def _lobe_slots(lobe, decl, nch):
@@ -131,6 +162,11 @@ def _lobe_slots(lobe, decl, nch):
 
 # --- shapes -----------------------------------------------------------------------------------
 
+#: ``label``, a field of every shape and light: what error messages call it (a scene file's
+#: ``shapes[2]``); by default ``shape K`` or ``light K`` after its place in the scene.
+_LABEL = {"default": None, "compare": False, "repr": False}
+
+
 @dataclass
 class Sphere:
     centre: tuple
@@ -138,6 +174,7 @@ class Sphere:
     material: object = None
     emission: object = None
     sides: str = "front"
+    label: str = field(**_LABEL)
 
 
 @dataclass
@@ -151,6 +188,13 @@ class Quad:
     material: object = None
     emission: object = None
     sides: str = "front"
+    label: str = field(**_LABEL)
+
+
+#: Mesh files :meth:`Mesh.read` takes (pyvista's surface readers).
+MESH_EXTENSIONS = (".ply", ".obj", ".stl", ".vtk", ".vtp")
+#: Largest mesh file read: 2 GB, some 40 million triangles in binary PLY.
+MESH_BYTES = 2 << 30
 
 
 @dataclass
@@ -163,41 +207,57 @@ class Mesh:
     material: object = None
     normals: np.ndarray = None
     uv: np.ndarray = None
+    label: str = field(**_LABEL)
 
     @classmethod
     def read(cls, path, material=None, transform=None):
         """A PLY, OBJ, STL or VTK mesh through pyvista (triangulated); ``transform`` a 4 x 4
         matrix applied to it."""
         import os
-        import pyvista as pv
+        import warnings
+        from pathlib import Path
+        from ..io.files import check_file
+        suffix = Path(path).suffix.lower()
+        if suffix not in MESH_EXTENSIONS:
+            raise InputError(f"{path}: expected a mesh file ({', '.join(MESH_EXTENSIONS)}), "
+                             f"got {suffix or 'no extension'}")
         if not os.path.exists(path):
             raise InputError(f"{path}: no such mesh file")
-        try:
-            mesh = pv.read(path).extract_surface().triangulate()
-        except Exception as e:  # pyvista raises various types for unreadable files
-            raise InputError(f"{path}: cannot read a mesh ({e})") from None
-        if mesh.n_cells == 0:
-            raise InputError(f"{path}: holds no triangles")
-        if transform is not None:
-            mesh = mesh.transform(np.asarray(transform, dtype=float), inplace=False)
-        faces = mesh.faces.reshape(-1, 4)[:, 1:]
-        uv = mesh.active_texture_coordinates
-        normals = mesh.point_data.get("Normals")
+        check_file(path, MESH_BYTES, "a mesh file")
+        T = None if transform is None else _floats(transform)
+        if transform is not None and (T is None or T.shape != (16,) or not np.isfinite(T).all()):
+            raise InputError(f"{path}: to_world: expected a 4 x 4 matrix of finite numbers")
+        with warnings.catch_warnings():
+            # pyvista announces future changes of its API on every read; not the user's concern
+            warnings.simplefilter("ignore")
+            import pyvista as pv
+            try:
+                mesh = pv.read(path).extract_surface().triangulate()
+            except Exception as e:  # pyvista raises various types for unreadable files
+                raise InputError(f"{path}: cannot read a mesh ({' '.join(str(e).split())})") \
+                    from None
+            if mesh.n_cells == 0:
+                raise InputError(f"{path}: holds no triangles")
+            if T is not None:
+                mesh = mesh.transform(T.reshape(4, 4), inplace=False)
+            faces = mesh.faces.reshape(-1, 4)[:, 1:]
+            uv = mesh.active_texture_coordinates
+            normals = mesh.point_data.get("Normals")
         return cls(np.asarray(mesh.points, float), faces, material,
                    None if normals is None else np.asarray(normals, float),
                    None if uv is None else np.asarray(uv, float))
 
 
-def rectangle(to_world, material=None, emission=None, sides="front"):
+def rectangle(to_world, material=None, emission=None, sides="front", label=None):
     """Mitsuba 3's ``rectangle``: the square [-1, 1]^2 at z = 0 facing +z, mapped by the 4 x 4
     matrix ``to_world``."""
     T = np.asarray(to_world, dtype=float)
     p = lambda x, y: T[:3, :3] @ [x, y, 0.0] + T[:3, 3]  # noqa: E731
     c = p(-1, -1)
-    return Quad(c, p(1, -1) - c, p(-1, 1) - c, material, emission, sides)
+    return Quad(c, p(1, -1) - c, p(-1, 1) - c, material, emission, sides, label)
 
 
-def box(to_world, material=None):
+def box(to_world, material=None, label=None):
     """Mitsuba 3's ``cube``: the six outward-facing faces of [-1, 1]^3 mapped by ``to_world``."""
     T = np.asarray(to_world, dtype=float)
     p = lambda v: T[:3, :3] @ v + T[:3, 3]  # noqa: E731
@@ -215,7 +275,7 @@ def box(to_world, material=None):
             e2 = np.zeros(3)
             e2[b] = 2.0
             o = p(c)
-            faces.append(Quad(o, p(c + e1) - o, p(c + e2) - o, material))
+            faces.append(Quad(o, p(c + e1) - o, p(c + e2) - o, material, label=label))
     return faces
 
 
@@ -228,6 +288,7 @@ class PointLight:
     position: tuple
     intensity: object = 1.0
     attenuation: tuple = (1.0, 0.0, 0.0)
+    label: str = field(**_LABEL)
 
 
 @dataclass
@@ -241,6 +302,7 @@ class SpotLight:
     cutoff: float = 30.0
     exponent: float = 2.0
     attenuation: tuple = (1.0, 0.0, 0.0)
+    label: str = field(**_LABEL)
 
 
 @dataclass
@@ -249,6 +311,7 @@ class DirectionalLight:
 
     direction: tuple
     irradiance: object = 1.0
+    label: str = field(**_LABEL)
 
 
 @dataclass
@@ -265,6 +328,7 @@ class GoniometricLight:
     axis: tuple = (0.0, -1.0, 0.0)
     phi_axis: tuple = (1.0, 0.0, 0.0)
     attenuation: tuple = (1.0, 0.0, 0.0)
+    label: str = field(**_LABEL)
 
     @classmethod
     def from_ies(cls, path, position, **options):
@@ -335,19 +399,33 @@ class Scene:
     shapes: list = field(default_factory=list)
     lights: list = field(default_factory=list)
     environment: Environment = None
+    #: the file the scene was read from (:func:`~brdf.render.scenes.load`), named first in
+    #: the errors of :meth:`compile`
+    source: str = field(default=None, compare=False)
 
     # -- compilation -----------------------------------------------------------------------------
     def compile(self):
+        """The :class:`Compiled` arrays; :class:`InputError` for a shape, light or material
+        that does not make sense, naming it (and the scene's file)."""
+        try:
+            return self._compile()
+        except InputError as e:
+            if self.source:
+                raise InputError(f"{self.source}: {e}") from None
+            raise
+
+    def _compile(self):
         mats = _MaterialTable()
         prims, emitters = [], []
         sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
         for k, s in enumerate(self.shapes):
             mat = mats.index(s.material)
             if isinstance(s, Sphere):
-                r = float(s.radius)
-                if not (r > 0 and math.isfinite(r)):
-                    raise InputError(f"shape {k} (sphere): radius must be positive, got {s.radius}")
-                sph.append(np.concatenate([_vec(s.centre, f"shape {k} centre"), [r]]))
+                r = _number(s.radius, f"{_label(s, k)} (sphere) radius")
+                if not r > 0:
+                    raise InputError(f"{_label(s, k)} (sphere): radius must be positive, got "
+                                     f"{s.radius}")
+                sph.append(np.concatenate([_vec(s.centre, f"{_label(s, k)} centre"), [r]]))
                 prims.append((X.SPHERE, len(sph) - 1, mat, k))
             elif isinstance(s, Quad):
                 quad.append(_quad_row(s, k))
@@ -356,7 +434,8 @@ class Scene:
                 for t in _mesh_rows(s, k, tri, tri_n, tri_uv):
                     prims.append((X.TRIANGLE, t, mat, k))
             else:
-                raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got {type(s).__name__}")
+                raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got "
+                                 f"{type(s).__name__}")
         if not prims:
             raise InputError("scene: no shapes")
         prim = np.full((len(prims), 4), -1, dtype=np.int64)
@@ -379,25 +458,32 @@ class Scene:
             if getattr(s, "emission", None) is None:  # meshes do not emit
                 continue
             if kind == X.TRIANGLE:
-                raise InputError(f"shape {k}: emission is for quads and spheres")
-            if s.sides not in _SIDES:
-                raise InputError(f"shape {k}: sides must be front, back or both, got {s.sides!r}")
+                raise InputError(f"{_label(s, k)}: emission is for quads and spheres")
+            if not isinstance(s.sides, str) or s.sides not in _SIDES:
+                raise InputError(f"{_label(s, k)}: sides must be front, back or both, got "
+                                 f"{s.sides!r}")
             area = (4 * math.pi * sph[j, 3] ** 2 if kind == X.SPHERE
                     else float(np.linalg.norm(np.cross(quad[j, 1], quad[j, 2]))))
             f = np.zeros(16)
             f[0], f[1], f[2] = i, _SIDES[s.sides], area
-            f[3:6] = _colour(s.emission, f"shape {k} emission")
+            f[3:6] = _colour(s.emission, f"{_label(s, k)} emission")
             prim[i, 3] = len(emitters)
             emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
         lights = _pack_lights(self, emitters, scale)
         return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)))
 
 
+def _label(item, k, kind="shape"):
+    """What messages call shape (or light) ``k``: its ``label``, else ``shape K``."""
+    return getattr(item, "label", None) or f"{kind} {k}"
+
+
 def _quad_row(s, k):
-    c, e1, e2 = (_vec(s.corner, f"shape {k} corner"), _vec(s.edge1, f"shape {k} edge1"),
-                 _vec(s.edge2, f"shape {k} edge2"))
-    if np.linalg.norm(np.cross(e1, e2)) == 0:
-        raise InputError(f"shape {k} (quad): edges are parallel")
+    where = _label(s, k)
+    c, e1, e2 = (_vec(s.corner, f"{where} corner"), _vec(s.edge1, f"{where} edge1"),
+                 _vec(s.edge2, f"{where} edge2"))
+    if not np.linalg.norm(np.cross(e1, e2)) > 0:
+        raise InputError(f"{where} (quad): edges are parallel (or too long)")
     n, q1, q2 = _plane_frame(e1[None], e2[None])
     return np.stack([c, e1, e2, n[0], q1[0], q2[0], e1 / np.linalg.norm(e1)])
 
@@ -415,9 +501,9 @@ def _mesh_rows(s, k, tri, tri_n, tri_uv):
     v = np.asarray(s.vertices, float)
     f = np.asarray(s.faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
-        raise InputError(f"shape {k} (mesh): expected vertices (n, 3) and faces (m, 3)")
+        raise InputError(f"{_label(s, k)} (mesh): expected vertices (n, 3) and faces (m, 3)")
     if f.size and (f.min() < 0 or f.max() >= len(v)):
-        raise InputError(f"shape {k} (mesh): face indices outside 0..{len(v) - 1}")
+        raise InputError(f"{_label(s, k)} (mesh): face indices outside 0..{len(v) - 1}")
     tris = v[f]
     e = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     keep = np.linalg.norm(e, axis=1) > 0  # degenerate triangles have no normal
@@ -475,7 +561,7 @@ def _pack_lights(scene, emitters, scale):
     rows, gonio = list(emitters), []
     for k, light in enumerate(scene.lights):
         f = np.zeros(16)
-        where = f"light {k} ({type(light).__name__})"
+        where = f"{_label(light, k, 'light')} ({type(light).__name__})"
         if isinstance(light, (PointLight, SpotLight, GoniometricLight)):
             f[0:3] = _vec(light.position, where + " position")
             f[3:6] = _colour(light.intensity, where + " intensity")
@@ -488,12 +574,14 @@ def _pack_lights(scene, emitters, scale):
             if isinstance(light, SpotLight):
                 kind = L.SPOT
                 f[9:12] = _unit(light.direction, where + " direction")
-                if not 0 < float(light.cutoff) <= 180:
+                cutoff = _number(light.cutoff, where + " cutoff")
+                exponent = _number(light.exponent, where + " exponent")
+                if not 0 < cutoff <= 180:
                     raise InputError(f"{where}: cutoff must be in (0, 180] degrees")
-                if not float(light.exponent) >= 0:
+                if not exponent >= 0:
                     raise InputError(f"{where}: exponent must be >= 0")
-                f[12] = math.cos(math.radians(float(light.cutoff)))
-                f[13] = float(light.exponent)
+                f[12] = math.cos(math.radians(cutoff))
+                f[13] = exponent
             elif isinstance(light, GoniometricLight):
                 kind = L.GONIO
                 a = _unit(light.axis, where + " axis")
@@ -571,6 +659,12 @@ def _env_distribution(env):
     return rows, cols
 
 
+def _named(material, i):
+    """What messages call material ``i``: ``material 'NAME'`` or ``material I``."""
+    name = getattr(material, "name", None)
+    return f"material {name!r}" if name else f"material {i}"
+
+
 class _MaterialTable:
     """Materials met while compiling shapes, deduplicated, packed into the ``mats`` tuple."""
 
@@ -601,7 +695,7 @@ class _MaterialTable:
                 b = _tabulated(b, i, mat)
             if isinstance(b, Model):
                 if b.channels not in (1, 3):
-                    raise InputError(f"material {i}: the renderer works in RGB; the model has "
+                    raise InputError(f"{_named(mat, i)}: the renderer works in RGB; the model has "
                                      f"{b.channels} channels")
                 c = b.compile(3)
                 row[M.TYPE] = M.MODEL
@@ -613,12 +707,15 @@ class _MaterialTable:
                 params.extend(c.params)
             else:
                 if mat.textures:
-                    raise InputError(f"material {i}: textures apply to model parameters, not to "
+                    raise InputError(f"{_named(mat, i)}: textures apply to model parameters, not to "
                                      "measured tables")
                 if b.channels != 3:
-                    raise InputError(f"material {i}: the renderer works in RGB; the table has "
+                    raise InputError(f"{_named(mat, i)}: the renderer works in RGB; the table has "
                                      f"{b.channels} channels")
-                t = b if isinstance(b, MerlTable) else MerlTable.from_table(b)
+                try:
+                    t = b if isinstance(b, MerlTable) else MerlTable.from_table(b)
+                except InputError as e:
+                    raise InputError(f"{_named(mat, i)}: {e}") from None
                 row[M.TYPE] = M.MEASURED
                 row[M.SHARE] = i
                 row[M.GRID] = len(grids)
@@ -663,14 +760,14 @@ def _tabulated(model, i, mat):
     resolution (1 degree in theta_d and phi_d, finer near the specular peak in theta_h)."""
     from ..io.merl import MerlTable
     if mat.textures:
-        raise InputError(f"material {i}: {model} has custom lobes, which render through a "
+        raise InputError(f"{_named(mat, i)}: {model} has custom lobes, which render through a "
                          "MERL-grid table, and textures apply to model parameters only")
     if model.is_anisotropic:
-        raise InputError(f"material {i}: {model} is anisotropic (or its custom lobes do not "
+        raise InputError(f"{_named(mat, i)}: {model} is anisotropic (or its custom lobes do not "
                          "declare isotropic = True); the renderer tabulates custom lobes on the "
                          "isotropic MERL grid")
     if model.channels not in (1, 3):
-        raise InputError(f"material {i}: the renderer works in RGB; the model has "
+        raise InputError(f"{_named(mat, i)}: the renderer works in RGB; the model has "
                          f"{model.channels} channels")
     return MerlTable.from_table(model if model.channels == 3 else _RGB(model))
 
@@ -685,7 +782,7 @@ def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):
     for flat, image in mat.textures.items():
         lobe_name, _, pname = str(flat).partition(".")
         if lobe_name not in names or not pname:
-            raise InputError(f"material {i} texture {flat!r}: expected LOBE.PARAM with LOBE one "
+            raise InputError(f"{_named(mat, i)} texture {flat!r}: expected LOBE.PARAM with LOBE one "
                              f"of {', '.join(names)}")
         l = names.index(lobe_name)
         lobe = model.lobes[l]
@@ -695,7 +792,7 @@ def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):
             decl = None
         if not isinstance(decl, Param):
             numeric = [d.name for d in lobe.PARAMS if isinstance(d, Param)]
-            raise InputError(f"material {i} texture {flat!r}: not a numeric parameter of "
+            raise InputError(f"{_named(mat, i)} texture {flat!r}: not a numeric parameter of "
                              f"{lobe.name}; one of {', '.join(numeric)}")
         img = read_image(image, f"texture {flat}")
         lo, hi = decl.bounds

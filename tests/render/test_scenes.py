@@ -2,6 +2,7 @@
 JSON/TOML scene files with their error messages."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -283,16 +284,67 @@ def test_scene_file_errors_name_file_and_place(tmp_path, change, where, fragment
     assert fragment in str(e.value)
 
 
+@pytest.mark.parametrize("change, where, fragment", [
+    (lambda d: d.update(materials=["lambert"]), "materials", "expected a table, got list"),
+    (lambda d: d["shapes"][0].update(centre="0,0,0"), "shapes[0].centre", "3 finite numbers"),
+    (lambda d: d["shapes"][0].update(centre={"x": 0}), "shapes[0].centre", "3 finite numbers"),
+    (lambda d: d["shapes"][0].update(emission="hot"), "shapes[0].emission", "non-negative"),
+    (lambda d: d["shapes"][0].update(radius=-1), "shapes[0].radius", "must be positive"),
+    (lambda d: d["shapes"][4].update(scale=2), "shapes[4]", "unknown 'scale'"),
+    (lambda d: d["materials"].update(gold="gold.binary"), "materials.gold", "no such file"),
+    (lambda d: d["materials"].update(gold="lambert(albedo=2)"), "materials.gold", "albedo"),
+])
+def test_scene_values_of_the_wrong_type_name_file_and_path(tmp_path, change, where, fragment):
+    doc = _scene_document(tmp_path)
+    change(doc)
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(FormatError) as e:
+        render.load(path, "lambert")
+    assert str(e.value).startswith(f"{path}:{where}: "), str(e.value)
+    assert fragment in str(e.value), str(e.value)
+
+
+def test_scene_compile_errors_name_the_file_and_the_material(tmp_path):
+    doc = _scene_document(tmp_path)
+    doc["materials"]["spectral"] = str(tmp_path / "spectral.csv")
+    (tmp_path / "spectral.csv").write_bytes(
+        (Path(__file__).parents[1] / "data" / "gonio_spectral.csv").read_bytes())
+    doc["shapes"][0]["material"] = "spectral"
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(doc))
+    scene = render.load(path, "lambert")
+    with pytest.raises(InputError) as e:
+        scene.compile()
+    assert str(e.value).startswith(f"{path}: material 'spectral': "), str(e.value)
+
+
+def test_mesh_shapes_refuse_images_and_deep_json(tmp_path):
+    doc = _scene_document(tmp_path)
+    doc["shapes"][4]["file"] = "alb.png"
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match=r"shapes\[4\]\.file: .*expected a mesh file"):
+        render.load(path, "lambert")
+    path.write_text('{"shapes": ' + "[" * 5000 + "]" * 5000 + "}")
+    with pytest.raises(FormatError, match=r"scene\.json:line 1: nested more than 100"):
+        render.load(path, "lambert")
+    toml = tmp_path / "scene.toml"
+    toml.write_text("shapes = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(FormatError, match=r"scene\.toml:line 1: nested more than 100"):
+        render.load(toml, "lambert")
+
+
 def test_scene_file_syntax_errors(tmp_path):
     bad = tmp_path / "bad.json"
     bad.write_text('{"camera": {}\n,,}')
-    with pytest.raises(FormatError, match=r"bad\.json:2: not valid JSON"):
+    with pytest.raises(FormatError, match=r"bad\.json:line 2: not valid JSON"):
         render.load(bad)
     bad = tmp_path / "bad.toml"
     bad.write_text("[camera\nfov = 3\n")
     with pytest.raises(FormatError, match=r"bad\.toml: not valid TOML"):
         render.load(bad)
-    with pytest.raises(InputError, match="no such scene"):
+    with pytest.raises(FormatError, match=r"none\.json: no such file"):
         render.load(tmp_path / "none.json")
     doc = tmp_path / "uses.json"
     doc.write_text(json.dumps({"shapes": [{"type": "sphere", "centre": [0, 0, 0], "radius": 1,
