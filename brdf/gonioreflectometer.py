@@ -76,11 +76,15 @@ def measure(model, geometry="inplane:5", noise="none", seed=0, *, name=None):
     kind, scale = parse_noise(noise)
     rng = arguments.rng(seed, "measure: seed")
     isotropic = not getattr(model, "is_anisotropic", True)
+    channels = int(getattr(model, "channels", 3) or 3)
     merl = str(geometry).strip().lower() == "merl"
     if merl:
+        from .io.merl import SIZE, check_rgb
+        check_rgb(model)  # the grid's table stores r, g, b: never wavelengths under those names
+        _require_samples(geometry, SIZE, channels)
         wi, wo = geometry_directions(geometry)
     else:
-        angles = geometry_angles(geometry, rng, isotropic)
+        angles = geometry_angles(geometry, rng, isotropic, channels)
         wi = directions_from_degrees(angles[:, 0], angles[:, 1])
         wo = directions_from_degrees(angles[:, 2], angles[:, 3])
     values = np.asarray(model.eval(wi, wo), dtype=float)
@@ -123,10 +127,15 @@ def add_noise(values, kind, scale, rng):
     if kind == "none":
         return values, None
     magnitude = np.abs(values)
-    sigma = {"relative": lambda: scale * magnitude,
-             "additive": lambda: np.full_like(values, scale),
-             "poisson": lambda: scale * np.sqrt(magnitude)}[kind]()
-    return values + sigma * rng.standard_normal(values.shape), sigma
+    with np.errstate(over="ignore", invalid="ignore"):
+        sigma = {"relative": lambda: scale * magnitude,
+                 "additive": lambda: np.full_like(values, scale),
+                 "poisson": lambda: scale * np.sqrt(magnitude)}[kind]()
+        noisy = values + sigma * rng.standard_normal(values.shape)
+    if not (np.isfinite(noisy).all() and np.isfinite(sigma).all()):
+        raise InputError(f"noise {kind}:{scale:g}: the noisy values overflow float64; "
+                         "expected a smaller S")
+    return noisy, sigma
 
 
 def geometry_directions(geometry, rng=None, isotropic=True):
@@ -139,18 +148,46 @@ def geometry_directions(geometry, rng=None, isotropic=True):
             directions_from_degrees(angles[:, 2], angles[:, 3]))
 
 
-def geometry_angles(geometry, rng=None, isotropic=True):
+#: Peak bytes per sample of :func:`measure`, besides 4 float64 per channel: the geometry's
+#: random numbers, angles and directions, the model's temporaries and the table's copies
+#: (measured: random:1000000 of a 3-channel lambert + ggx peaks at about 0.4 kB per sample).
+SAMPLE_BYTES = 8 * 48
+
+
+def _require_samples(geometry, n, channels):
+    """Refuse (before allocating) a geometry of ``n`` samples that memory cannot hold."""
+    from .memory import require
+    require(n * (SAMPLE_BYTES + 32 * channels), f"geometry {geometry!r} ({n:,} samples)")
+
+
+def geometry_angles(geometry, rng=None, isotropic=True, channels=3):
     """Angles ``(N, 4)`` in degrees (theta_i, phi_i, theta_o, phi_o) of a measurement geometry
-    other than ``merl`` (whose nodes are defined in half/difference angles)."""
+    other than ``merl`` (whose nodes are defined in half/difference angles). A geometry whose
+    samples (of ``channels`` values each) would not fit in memory is refused before any is
+    made."""
     text = str(geometry).strip()
     kind, _, arg = text.partition(":")
     kind = kind.lower()
     if kind == "inplane":
-        return _inplane(*_numbers(text, arg, 1, "inplane:STEP"))
+        (step,) = _numbers(text, arg, 1, "inplane:STEP")
+        n = len(_polar_steps(step, text, channels))
+        _require_samples(text, n * (2 * n - 1), channels)
+        return _inplane(step)
     if kind == "grid":
-        return _grid(*_numbers(text, arg, 2, "grid:DTHETA,DPHI"), isotropic=isotropic)
+        dtheta, dphi = _numbers(text, arg, 2, "grid:DTHETA,DPHI")
+        n_theta = len(_polar_steps(dtheta, text, channels))
+        n_phi = math.ceil((360.0 - 1e-9) / dphi)
+        n_out = 1 + (n_theta - 1) * n_phi
+        _require_samples(text, (n_theta if isotropic else n_out) * n_out, channels)
+        return _grid(dtheta, dphi, isotropic=isotropic)
     if kind == "random":
         count, _, weighting = arg.partition(":")
+        try:
+            n = int(count) if count.strip().isascii() and "_" not in count else 0
+        except ValueError:
+            n = 0
+        if n > 0:
+            _require_samples(text, n, channels)
         return _random(text, count, weighting or "uniform",
                        rng if rng is not None else np.random.default_rng(0))
     if Path(text).suffix.lower() == ".csv" or Path(text).is_file():
@@ -162,7 +199,8 @@ def geometry_angles(geometry, rng=None, isotropic=True):
 def _numbers(text, arg, count, form):
     parts = [p for p in arg.split(",")] if arg else []
     try:
-        values = [float(p) for p in parts]
+        values = [float(p) if p.strip().isascii() and "_" not in p else math.nan
+                  for p in parts]
     except ValueError:
         values = []
     if len(values) != count or not all(math.isfinite(v) and 0.0 < v <= 90.0 for v in values):
@@ -170,8 +208,11 @@ def _numbers(text, arg, count, form):
     return values
 
 
-def _polar_steps(step):
-    """0, step, 2 step, ... strictly below 90 degrees (at 90 a direction lies in the horizon)."""
+def _polar_steps(step, geometry=None, channels=3):
+    """0, step, 2 step, ... strictly below 90 degrees (at 90 a direction lies in the horizon);
+    with ``geometry``, refused first if memory cannot hold the steps themselves."""
+    if geometry is not None:
+        _require_samples(geometry, math.ceil((90.0 - 1e-9) / step), channels)
     return np.arange(0.0, 90.0 - 1e-9, step)
 
 
@@ -207,7 +248,7 @@ def _grid(dtheta, dphi, isotropic):
 
 def _random(text, count, weighting, rng):
     try:
-        n = int(count)
+        n = int(count) if count.strip().isascii() and "_" not in count else 0
     except ValueError:
         n = 0
     if n <= 0 or weighting not in ("uniform", "cosine"):
@@ -223,7 +264,8 @@ def _random(text, count, weighting, rng):
 def _angles_file(path):
     """Directions from a CSV with the columns theta_i, phi_i, theta_o, phi_o (degrees)."""
     from .io import read_bytes
-    data = read_bytes(path)
+    from .io._text import parse_float
+    data = read_bytes(path, what="a CSV file of angles")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as e:
@@ -248,7 +290,7 @@ def _angles_file(path):
             raise FormatError(path, f"line {line_no}",
                               f"{len(fields)} fields; expected {len(names)} like the header")
         try:
-            angles[k] = [float(fields[c]) for c in columns]
+            angles[k] = [parse_float(fields[c].strip()) for c in columns]
         except ValueError:
             raise FormatError(path, f"line {line_no}", "expected numbers (degrees)") from None
         if not np.all(np.isfinite(angles[k])) or not (0.0 <= angles[k, 0] <= 90.0

@@ -24,6 +24,7 @@ import numpy as np
 from .. import arguments
 from ..arguments import integer, shown
 from ..errors import InputError
+from ..memory import require
 from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Material, Mesh,
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
 from .scenes import BUILTIN, builtin, load
@@ -41,6 +42,12 @@ STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
 TILE = 32
 #: Paths (pixels times samples) a pass traces before the progress bar moves.
 PASS_PATHS = 2 ** 22
+#: Peak bytes per pixel of a render with layers: the kernel's sums (RGB, RGB squared, albedo
+#: and normal: 12 float64), the result's mean, variance, albedo and normal and the variance's
+#: temporary (15 float64), then the EXR writer's float32 copies of 12 channels.
+PIXEL_BYTES = 8 * (12 + 15) + 4 * 12
+#: The same without layers: the sum and the mean (6 float64) and an 8-bit RGB copy.
+PIXEL_BYTES_RGB = 8 * 6 + 3
 
 
 @dataclass
@@ -180,6 +187,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     w, h, spp, depth, rr_depth, threads = _options(size, spp, max_depth, rr_depth, strategy,
                                                    threads)
     seed = _seed(seed)
+    require(w * h * (PIXEL_BYTES if layers else PIXEL_BYTES_RGB),
+            f"a {w} x {h} render{' with layers' if layers else ''}")
     compiled = scene.compile()
     cam = scene.camera.pack(w, h)
     acc = np.zeros((h, w, 3))
