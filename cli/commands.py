@@ -231,16 +231,18 @@ def synth(args, out):
 
 def _assignments(items):
     """``{name: value}`` from ``NAME=VALUE`` strings (``--fix``)."""
+    import math
     from brdf.errors import InputError
+    from .arguments import parse_float
     out = {}
     for item in items:
         name, _, value = (part.strip() for part in item.partition("="))
         try:
-            number = float(value)
+            number = parse_float(value)
         except ValueError:
-            number = None
-        if not name or number is None:
-            raise InputError(f"--fix expects NAME=VALUE with a number, got {item!r}")
+            number = math.nan
+        if not name or not math.isfinite(number):
+            raise InputError(f"--fix expects NAME=VALUE with a finite number, got {item!r}")
         out[name] = number
     return out
 

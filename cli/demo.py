@@ -1,5 +1,6 @@
 """``brdf-fit demo``: the main job end to end (:mod:`brdf.demo`)."""
 
+from . import arguments
 from .commands import EXIT_OK
 
 
@@ -14,7 +15,7 @@ def add_parser(sub, subcommand):
                    "print the summary as JSON")
     p.add_argument("-o", "--output", default="results", metavar="OUTDIR",
                    help="folder for the reports, images and report.html (default: results)")
-    p.add_argument("--seed", type=int, default=0, help="seed (default: 0)")
+    p.add_argument("--seed", type=arguments.seed, default=0, help="seed (default: 0)")
     p.add_argument("--quick", action="store_true",
                    help="small renders and short chains (a smoke run)")
     p.add_argument("--force", action="store_true", help="write into a non-empty OUTDIR")

@@ -1,11 +1,14 @@
 """``brdf-fit``: argument parsing, dispatch and error reporting (DESIGN.md section 4).
 
 Exit status: 0 success, 1 the work ran but a check failed, 2 usage error or bad input, 3 an
-internal error (a bug). Errors are one line on stderr, ``brdf-fit: error: ...``; ``--debug``
-prints the traceback before it.
+internal error (a bug), 128 + N when ended by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP):
+SIGTERM and SIGHUP are handled like SIGINT, so outputs being written are removed. Errors are
+one line on stderr, ``brdf-fit: error: ...``; ``--debug`` prints the traceback before it.
 """
 
 import argparse
+import contextlib
+import signal
 import sys
 import textwrap
 
@@ -29,6 +32,35 @@ DATA_HELP = ("a measured table (MERL .binary, .csv, .npz, RGL .bsdf, ...; see 'b
              "info')")
 GEOMETRY_HELP = ("merl (the full MERL grid), inplane:STEP, grid:DTHETA,DPHI, random:N or "
                  "random:N:cosine, or a CSV of angles theta_i,phi_i,theta_o,phi_o (degrees)")
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the main thread is when it arrives (as SIGINT raises
+    KeyboardInterrupt), so that ``with`` blocks writing outputs remove their temporary files."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _terminate_like_interrupt():
+    """SIGTERM and SIGHUP raise :class:`Terminated` while the block runs (main thread only:
+    elsewhere, as under a test runner's threads, the handlers stay as they are)."""
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, _raise_terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
 
 
 class UsageError(Exception):
@@ -71,7 +103,7 @@ def _common(suppress):
 
 
 def _sample_option(p):
-    p.add_argument("--sample", type=int, default=None, metavar="N",
+    p.add_argument("--sample", type=arguments.count, default=None, metavar="N",
                    help="for a file holding several materials (CUReT abrdf.dat: 1 to 61), "
                         "the one to use (default: the first)")
 
@@ -189,14 +221,15 @@ def _fit_options(p):
     p.add_argument("--energy-constraint", action="store_true",
                    help="constrain the directional albedo to at most 1 (cheapest with "
                         "--optimizer LD_SLSQP)")
-    p.add_argument("--cutoff", type=float, default=80.0, metavar="DEG",
+    p.add_argument("--cutoff", type=arguments.cutoff, default=80.0, metavar="DEG",
                    help="leave out samples with theta_i or theta_o above DEG degrees "
                         "(default: 80)")
     p.add_argument("--shared", nargs="+", action="extend", default=[], metavar="NAME",
                    help="per-channel parameters fitted as one value, e.g. ggx.ks")
     p.add_argument("--fix", nargs="+", action="extend", default=[], metavar="NAME=VALUE",
                    help="parameters held fixed, e.g. ggx.alpha=0.2 or lambert.albedo[1]=0.4")
-    p.add_argument("--max-evals", type=int, default=2000, metavar="N",
+    p.add_argument("--max-evals", type=arguments.integer(1, 10**9, "an evaluation count"),
+                   default=2000, metavar="N",
                    help="objective evaluations per run (default: 2000)")
     p.add_argument("--seed", type=arguments.seed, default=0,
                    help="seed of random starts and global optimizers (default: 0)")
@@ -223,7 +256,8 @@ def _fit_parser(sub):
                         "correlations; exit 1 if the chain did not converge")
     arguments.add_chain_options(m)
     m.add_argument("--chain", metavar="PATH", help="save the chain (.npz, or .h5 with h5py)")
-    m.add_argument("--corner", metavar="PNG", help="write a corner plot of the posterior")
+    m.add_argument("--corner", metavar="PNG", type=arguments.suffixed(".png", what="a PNG"),
+                   help="write a corner plot of the posterior")
     export.add_fit_options(p.add_argument_group("export"))
 
 
@@ -254,7 +288,7 @@ def _batch_parser(sub):
     p.add_argument("spec", metavar="SPEC", help="the model to fit to each file")
     p.add_argument("-o", "--output", metavar="OUTDIR", required=True,
                    help="folder for the reports and the summary (created if missing)")
-    p.add_argument("--jobs", type=int, metavar="N",
+    p.add_argument("--jobs", type=arguments.integer(1, 1024, "a process count"), metavar="N",
                    help="local worker processes (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run the fits on a Dask distributed cluster, e.g. tcp://host:8786 "
@@ -315,7 +349,11 @@ def main(argv=None):
     if status:
         return status
     try:
-        return args.handler(args, Output(sys.stdout, args.quiet))
+        with _terminate_like_interrupt():
+            return args.handler(args, Output(sys.stdout, args.quiet))
+    except Terminated as exc:
+        _error(f"terminated by {signal.Signals(exc.signum).name}")
+        return 128 + exc.signum
     except KeyboardInterrupt:
         _error("interrupted")
         return EXIT_INTERRUPTED

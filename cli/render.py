@@ -8,9 +8,10 @@ SCENE_HELP = ("a built-in scene (cornell, sphere, furnace, plane-point) or a .js
 
 def _size(text):
     import argparse
+    from .arguments import parse_int
     try:
         w, _, h = text.lower().partition("x")
-        w, h = int(w), int(h or w)
+        w, h = parse_int(w), parse_int(h or w)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WxH in pixels, e.g. 256x256, got {text!r}")
     if not (1 <= w <= 16384 and 1 <= h <= 16384):
@@ -18,20 +19,36 @@ def _size(text):
     return w, h
 
 
+def _depth(text):
+    """--max-depth: a path length of at least 1 segment, or -1 for no limit."""
+    import argparse
+    from .arguments import parse_int
+    try:
+        value = parse_int(text)
+    except ValueError:
+        value = 0
+    if value != -1 and not 1 <= value <= 1 << 20:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected a path length from 1 to "
+                                          f"{1 << 20} segments, or -1 for no limit")
+    return value
+
+
 def _render_options(p, arguments):
     p.add_argument("--scene", default="sphere", metavar="SCENE", help=SCENE_HELP)
-    p.add_argument("--spp", type=int, default=64, metavar="N",
+    p.add_argument("--spp", type=arguments.integer(1, 1 << 24, "samples per pixel"), default=64,
+                   metavar="N",
                    help="samples per pixel (default: 64)")
     p.add_argument("--size", type=_size, default=(256, 256), metavar="WxH",
                    help="image size in pixels (default: 256x256)")
     p.add_argument("--seed", type=arguments.seed, default=0, help="seed (default: 0)")
-    p.add_argument("--max-depth", type=int, default=8, metavar="N",
+    p.add_argument("--max-depth", type=_depth, default=8, metavar="N",
                    help="longest path in segments, as Mitsuba counts it; -1: no limit "
                         "(default: 8)")
     p.add_argument("--strategy", choices=("mis", "bsdf", "light"), default="mis",
                    help="emitter sampling: multiple importance sampling (default), BSDF or "
                         "light sampling only")
-    p.add_argument("--threads", type=int, metavar="N", help="threads (default: all cores)")
+    p.add_argument("--threads", type=arguments.integer(1, 1024, "a thread count"), metavar="N",
+                   help="threads (default: all cores)")
     p.add_argument("--force", action="store_true", help="replace existing outputs")
 
 
@@ -44,9 +61,13 @@ def add_parsers(sub, subcommand, arguments, subject_help, data_help):
                    "PNG when OUT ends in .png; --preview adds a PNG beside the EXR.",
                    "print the render's statistics as JSON")
     p.add_argument("material", metavar="MATERIAL", help=subject_help)
-    p.add_argument("-o", "--output", required=True, metavar="OUT", help="image.exr or image.png")
-    p.add_argument("--preview", metavar="PNG", help="also write a tone-mapped sRGB PNG")
-    p.add_argument("--exposure", type=float, default=0.0, metavar="STOPS",
+    p.add_argument("-o", "--output", required=True, metavar="OUT",
+                   type=arguments.suffixed(".exr", ".png", what="an OpenEXR or PNG image"),
+                   help="image.exr or image.png")
+    p.add_argument("--preview", metavar="PNG", type=arguments.suffixed(".png", what="a PNG"),
+                   help="also write a tone-mapped sRGB PNG")
+    p.add_argument("--exposure", type=arguments.number(-64.0, 64.0, "stops"), default=0.0,
+                   metavar="STOPS",
                    help="exposure of PNG output in stops (default: 0)")
     p.add_argument("--no-layers", dest="layers", action="store_false",
                    help="write RGB only, without the albedo, normal and variance layers "

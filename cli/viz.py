@@ -19,13 +19,13 @@ def _output(p, required=True):
 
 
 def _channel(p):
-    p.add_argument("--channel", type=int, metavar="C",
+    p.add_argument("--channel", type=arguments.channel, metavar="C",
                    help="the channel to draw, 0-based (default: the mean over channels)")
 
 
 def _material(p, nargs=None):
     p.add_argument("material", metavar="MATERIAL", nargs=nargs, help=MATERIAL_HELP)
-    p.add_argument("--sample", type=int, default=None, metavar="N",
+    p.add_argument("--sample", type=arguments.count, default=None, metavar="N",
                    help="for a file holding several materials (CUReT), the one to use")
 
 
@@ -55,7 +55,8 @@ def add_parsers(sub, subcommand):
                    "print a JSON summary")
     _material(p)
     _data(p)
-    p.add_argument("--theta-i", type=arguments.theta_list, default=[30.0], metavar="LIST",
+    p.add_argument("--theta-i", type=arguments.theta_list_below_horizon, default=[30.0],
+                   metavar="LIST",
                    help="incidence polar angles, degrees below 90, one view each (default: 30)")
     p.add_argument("--phi-i", type=arguments.phi, default=0.0, metavar="DEG",
                    help="incidence azimuth, degrees (default: 0)")
@@ -64,7 +65,8 @@ def add_parsers(sub, subcommand):
     p.add_argument("--no-cosine", dest="cosine", action="store_false",
                    help="draw f_r alone, without the cos(theta_o) factor")
     _channel(p)
-    p.add_argument("--resolution", type=int, default=48, metavar="N",
+    p.add_argument("--resolution", type=arguments.integer(4, 1024, "polar steps"), default=48,
+                   metavar="N",
                    help="polar steps of the hemisphere mesh (default: 48)")
     _output(p, required=False)
 
@@ -118,7 +120,7 @@ def add_parsers(sub, subcommand):
     p.add_argument("model", metavar="MODEL", help="a spec or a JSON fit report")
     p.add_argument("data", metavar="DATA", nargs="?",
                    help="the measured table (default: the input of a fit report)")
-    p.add_argument("--cutoff", type=float, default=80.0, metavar="DEG",
+    p.add_argument("--cutoff", type=arguments.cutoff, default=80.0, metavar="DEG",
                    help="leave out samples with theta_i or theta_o above DEG (default: 80)")
     _channel(p)
     _output(p)
@@ -138,7 +140,8 @@ def add_parsers(sub, subcommand):
     _posterior(p)
     p.add_argument("--theta-i", type=arguments.theta, default=30.0, metavar="DEG",
                    help="incidence of the in-plane band, degrees (default: 30)")
-    p.add_argument("--draws", type=int, default=100, metavar="N",
+    p.add_argument("--draws", type=arguments.integer(1, 100_000, "a draw count"), default=100,
+                   metavar="N",
                    help="posterior models drawn for the bands (default: 100)")
     _channel(p)
     _output(p)
