@@ -69,7 +69,9 @@ def read(path):
         Wrong dimensions, truncated or oversized file, NaN or infinite stored values; the
         message names the byte offset.
     """
-    data = read_bytes(path, FILE_BYTES, "a MERL .binary file")
+    # twice the exact size: files of other dimensions or with trailing bytes are still read,
+    # so that the message says which dimensions or how many bytes too many
+    data = read_bytes(path, 2 * FILE_BYTES, "a MERL .binary file")
     raw = _parse(path, data)
     return MerlTable(raw, source=source_of(path, data, FORMAT))
 

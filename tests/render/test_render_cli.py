@@ -84,7 +84,7 @@ def test_render_same_seed_same_bytes(capsys, tmp_path):
     (["render", "lambert", "-o", "{tmp}/x.exr", "--scene", "teapot"], ["built-in scenes"]),
     (["render", "lambert", "-o", "{tmp}/x.exr", "--size", "0x4"], ["pixels"]),
     (["render", "lambert", "-o", "{tmp}/x.exr", "--spp", "0"], ["spp"]),
-    (["render", "lambert", "-o", "{tmp}/x.exr", "--scene", "{tmp}/none.json"], ["no such scene"]),
+    (["render", "lambert", "-o", "{tmp}/x.exr", "--scene", "{tmp}/none.json"], ["none.json: no such file"]),
     (["render", "{tmp}/none.binary", "-o", "{tmp}/x.exr"], ["none.binary"]),
     (["validate", "{tmp}/none.npz", "lambert", "-o", "{tmp}/v"], ["none.npz"]),
 ])
