@@ -15,6 +15,7 @@ from brdf.io import rgl_bsdf
 from brdf.io.rgl_bsdf import RglTable
 from measured_data import measured, published_sha256
 from mitsuba_oracle import load_mitsuba, mitsuba_eval
+from tensor_files import small_material, tensor_file
 
 # descriptions as the README of ../shared/measured lists them
 MATERIALS = {
@@ -318,50 +319,8 @@ def test_spectral_file_reads_with_wavelengths(tmp_path):
 
 # --- bad input ----------------------------------------------------------------------------------
 
-_CODES = {np.dtype("uint8"): 1, np.dtype("uint32"): 5, np.dtype("float32"): 10}
-
-
-def tensor_file(fields, align=8):
-    """Bytes of a tensor_file holding ``fields`` (name -> array), written from the format
-    description, and ``{name: (entry, dtype byte, offset byte, data offset)}``."""
-    head = bytearray(b"tensor_file\x00" + bytes([1, 0]) + struct.pack("<I", len(fields)))
-    where, arrays = {}, {}
-    for name, a in fields.items():
-        a = np.ascontiguousarray(a)
-        entry = len(head)
-        raw = name.encode()
-        head += struct.pack("<H", len(raw)) + raw + struct.pack("<H", a.ndim)
-        where[name] = [entry, len(head), len(head) + 1]
-        head += struct.pack("<BQ", _CODES[a.dtype], 0) + struct.pack(f"<{a.ndim}Q", *a.shape)
-        arrays[name] = a
-    body = bytearray(head)
-    for name, a in arrays.items():
-        body += bytes(-len(body) % align)
-        struct.pack_into("<Q", body, where[name][2], len(body))
-        where[name].append(len(body))
-        body += a.astype(a.dtype.newbyteorder("<")).tobytes()
-    return bytes(body), {k: tuple(v) for k, v in where.items()}
-
-
-def _small_material():
-    """A valid material with 3 incident angles and 4 x 4 samples per angle."""
-    f32 = np.float32
-    return {
-        "version": np.array([1, 0], dtype=np.uint32),
-        "description": np.frombuffer("Test swatch (µ)".encode(), dtype=np.uint8),
-        "phi_i": np.zeros(1, f32),
-        "theta_i": np.array([0.0, 0.7, 1.5707964], f32),
-        "sigma": np.full((2, 8), 0.8, f32),
-        "ndf": np.full((2, 8), 0.3, f32),
-        "vndf": np.ones((1, 3, 8, 8), f32),
-        "luminance": np.ones((1, 3, 4, 4), f32),
-        "rgb": np.full((1, 3, 3, 4, 4), 0.5, f32),
-        "jacobian": np.ones(1, np.uint8),
-    }
-
-
 def test_small_material_reads(tmp_path):
-    data, _ = tensor_file(_small_material())
+    data, _ = tensor_file(small_material())
     path = tmp_path / "ok.bsdf"
     path.write_bytes(data)
     t = rgl_bsdf.read(path)
@@ -377,8 +336,8 @@ def _patched(data, at, new):
 
 
 def _bad_cases():
-    data, where = tensor_file(_small_material())
-    fields = _small_material()
+    data, where = tensor_file(small_material())
+    fields = small_material()
     nan = fields["vndf"].copy()
     nan[0, 1, 2, 3] = np.nan
     nan_data, nan_where = tensor_file({**fields, "vndf": nan})
@@ -428,7 +387,7 @@ def test_bad_input_names_file_and_byte(tmp_path, case):
 
 
 def test_missing_fields_lists_the_required_ones(tmp_path):
-    fields = {k: v for k, v in _small_material().items() if k not in ("rgb", "ndf")}
+    fields = {k: v for k, v in small_material().items() if k not in ("rgb", "ndf")}
     path = tmp_path / "bad.bsdf"
     path.write_bytes(tensor_file(fields)[0])
     with pytest.raises(FormatError, match=r"'ndf', 'rgb'; an RGB \.bsdf material needs "
