@@ -23,9 +23,15 @@ GGX, BECKMANN = 0, 1
 SQRT_PI = math.sqrt(math.pi)
 ERF_EDGE = 1.0 - 2.0 ** -53
 ERF_EDGE_U = 2.0 ** -54  # the u with 2u - 1 = -ERF_EDGE
-#: Iteration cap of the visible-slope inversion. Measured over mu in [0, 1e6]: at most 6 steps
-#: for u < 1 - 1e-12; only closer to 1, where C(mu) - C(x) has no digits left, is it reached.
-MAX_STEPS = 20
+#: A bracket of the visible slope for every u in [2^-54, 1 - 2^-53] and mu >= 0: C(-7) <=
+#: (erfc(7) + e^-49) C(mu) < 2^-54 C(mu) and C(mu) - C(7) <= erfc(7) C(mu) < 2^-53 C(mu), as
+#: C(mu) >= max(1/2, sqrt(pi) mu / 2) and (mu - t) <= mu (see beckmann_visible_slope_search).
+SLOPE_LO, SLOPE_HI = -7.0, 7.0
+#: Bracket width at which the visible-slope inversion stops if Halley's steps have not.
+SLOPE_TOL = 2.0 ** -40
+#: Iteration cap of the inversion: every three evaluations at least halve the bracket, and
+#: 2^44 SLOPE_TOL > SLOPE_HI - SLOPE_LO, so 3 * 44 + 1 evaluations always reach SLOPE_TOL.
+MAX_STEPS = 3 * 44 + 1
 
 
 class Microfacet(Model):
@@ -227,18 +233,32 @@ def erfinv(y):
 
 
 @kernel
-def beckmann_visible_slope_x(mu, u):
-    """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu >= 0.
+def beckmann_visible_slope_search(mu, u, halley):
+    """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu >= 0, the
+    number of CDF evaluations spent and the width of the final bracket.
 
     Solves C(x) = u C(mu) on x < mu, where C(x) = mu sqrt(pi)/2 erfc(-x) + exp(-x^2)/2 is the
-    CDF of the density (mu - x) exp(-x^2) (Heitz & d'Eon 2014, section 5.2; erfc(-x) rather than
-    1 + erf(x) keeps the left tail's precision). Halley's method runs on ln C(x) for u <= 1/2 and
-    on ln S(x), S = C(mu) - C(x), above: in logs the Gaussian tails are near-quadratic, so steps
-    stay long far from the root. The start blends the exact solutions at the two ends of mu,
-    erfinv(2u - 1) (mu -> inf, density exp(-x^2)) and -sqrt(-ln u) (mu = 0, C = exp(-x^2)/2),
-    with weights mu^2 and 1; for u > 1/2 the solution of S = exp(-mu^2) (mu - x)^2 / 2, exact
-    as x -> mu, takes over where it lies to the right. Two steps usually follow; a step below
-    1e-4 of the scale of x is the last, as Halley's error after it is of the order of its cube.
+    CDF of the density (mu - x) exp(-x^2) (Heitz & d'Eon 2014, section 5.2, eq. 8 integrated;
+    erfc(-x) rather than 1 + erf(x) keeps the left tail's precision). C rises strictly, so the
+    root stays inside a bracket [lo, hi], first [SLOPE_LO, min(mu, SLOPE_HI)], that every
+    evaluation narrows (Jakob 2014, "An Improved Visible Normal Sampling Routine for the
+    Beckmann Distribution", brackets it likewise in the erf domain). Halley's method runs on
+    ln C(x) for u <= 1/2 and on ln S(x), S = C(mu) - C(x), above: in logs the Gaussian tails
+    are near-quadratic, so steps stay long far from the root. A step whose curvature
+    correction more than doubles it falls back to Newton's (near mu, ln S ~ 2 ln(mu - x) drives
+    Halley's denominator to 0); a step that leaves the bracket, and any step after two
+    evaluations that did not halve it, is a bisection, so each three evaluations halve the
+    bracket and MAX_STEPS of them bring it below SLOPE_TOL: the search returns converged by
+    construction. A Halley step below 1e-4 of the scale of x ends it sooner (its error is of
+    the order of the step's cube); so does the bracket reaching SLOPE_TOL, as it does where
+    S has no digits left (u within ~1e-13 of 1).
+
+    The start blends the exact solutions at the two ends of mu, erfinv(2u - 1) (mu -> inf,
+    density exp(-x^2)) and -sqrt(-ln u) (mu = 0, C = exp(-x^2)/2), with weights mu^2 and 1;
+    for u > 1/2, x_mu solving S = exp(-mu^2) (mu - x)^2 / 2 is a lower bound of the root where
+    x_mu >= -mu (there exp(-t^2) >= exp(-mu^2) under the integral of S) and so narrows the
+    bracket, and it takes over from the blend where that lies right of mu. ``halley`` False
+    bisects from the first step: the worst case that MAX_STEPS is sized for, for the tests.
     """
     u = max(u, ERF_EDGE_U)  # like erfinv's clamp: u = 0, a legal uniform number, stays finite
     k = 0.5 * SQRT_PI * mu
@@ -246,15 +266,20 @@ def beckmann_visible_slope_x(mu, u):
     total = k * math.erfc(-mu) + 0.5 * em
     right = u > 0.5
     log_target = math.log((1.0 - u) * total if right else u * total)
+    lo, hi = SLOPE_LO, min(mu, SLOPE_HI)
     # Giles' fit covers w <= 16; clamped, it only coarsens the start in the far tails
     gauss = _giles_erfinv(min(-math.log(4.0 * u * (1.0 - u)), 16.0), 2.0 * u - 1.0)
     w = mu * mu / (1.0 + mu * mu)
     x = w * gauss - (1.0 - w) * math.sqrt(-math.log(u))
-    if right:  # near mu, S ~ exp(-mu^2) (mu - x)^2 / 2, which bounds S from below where x > -mu
+    if right:
         near_mu = mu - math.sqrt(2.0 * (1.0 - u) * total / em)
         x = near_mu if x >= mu else max(x, near_mu)
-    lo, hi = -math.inf, mu
-    for _ in range(MAX_STEPS):
+        if near_mu >= -mu:
+            lo = max(lo, near_mu)
+    if not halley or not lo <= x < hi:
+        x = 0.5 * (lo + hi)
+    before = last = hi - lo  # the bracket's width two evaluations back and one back
+    for i in range(MAX_STEPS):
         e = math.exp(-x * x)
         if right:  # g = ln((1 - u) C(mu)) - ln S rises with x as S falls
             c = k * (math.erfc(x) - math.erfc(mu)) + 0.5 * (em - e)
@@ -263,21 +288,36 @@ def beckmann_visible_slope_x(mu, u):
             c = k * math.erfc(-x) + 0.5 * e
             sign = 1.0
         g = sign * (math.log(c) - log_target)
+        if g <= 0.0:
+            lo = x
+        else:  # also NaN: S <= 0 from cancellation next to mu, where x is right of the root
+            hi = x
+        width = hi - lo
+        if width <= SLOPE_TOL:
+            return 0.5 * (lo + hi), i + 1, width
         g1 = (mu - x) * e / c  # C' = (mu - x) exp(-x^2), over c
         g2 = -e * (1.0 + 2.0 * x * (mu - x)) / c - sign * g1 * g1  # C'' / c - sign (C' / c)^2
         step = g / g1
-        step /= 1.0 - 0.5 * step * g2 / g1  # Halley: Newton's step corrected by the curvature
-        if g > 0.0:
-            hi = x
-        else:
-            lo = x
+        d = 1.0 - 0.5 * step * g2 / g1  # Halley: Newton's step over d, if d keeps it sane
+        if d >= 0.5:
+            step /= d
         # the scale of x is 1, or its distance to mu where S vanishes like (mu - x)^2
-        if abs(step) <= 1e-4 * min(1.0 + abs(x), mu - x):
-            return min(max(x - step, lo), hi)  # a rounding-level step may point out of the bracket
+        if halley and abs(step) <= 1e-4 * min(1.0 + abs(x), mu - x):
+            # a rounding-level step may point out of the bracket
+            return min(max(x - step, lo), hi), i + 1, width
         x -= step
-        if not lo < x < hi:  # bisect the bracket, or walk left while it is open
-            x = 0.5 * (lo + hi) if lo > -math.inf else hi - 1.0 - abs(hi)
-    return x
+        stalled = i >= 2 and width > 0.5 * before
+        before, last = last, width
+        if not halley or stalled or not lo < x < hi:
+            x = 0.5 * (lo + hi)
+    return 0.5 * (lo + hi), MAX_STEPS, hi - lo  # not reached: width <= SLOPE_TOL by then
+
+
+@kernel
+def beckmann_visible_slope_x(mu, u):
+    """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu >= 0, to
+    within SLOPE_TOL (see :func:`beckmann_visible_slope_search`)."""
+    return beckmann_visible_slope_search(mu, u, True)[0]
 
 
 @kernel

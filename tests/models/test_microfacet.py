@@ -3,6 +3,7 @@ albedos, and closed forms written here in spherical angles rather than the libra
 
 import math
 
+import numba
 import numpy as np
 import pytest
 from scipy import integrate, optimize, special
@@ -282,3 +283,99 @@ def test_albedo_weight_is_f_cos_over_pdf(name, ax, ay, correlated, f0):
                                        rtol=1e-9)
             valid += 1
     assert valid > 150
+
+
+# (theta_i deg, alpha) where the Halley iteration without a bracket once failed in bands of u
+# 1e-6 to 5e-6 wide near 1 (e.g. 80 deg, alpha 0.2: u in [0.9980233, 0.9980261]), and the
+# grazing incidences 85 and 89 deg
+OLD_BANDS = [(80.0, 0.2), (85.0, 0.05), (45.0, 0.5), (55.0, 0.5), (60.0, 0.5), (70.0, 0.5),
+             (80.0, 0.1), (75.0, 0.1), (89.0, 0.01), (89.0, 0.2), (85.0, 0.5), (89.0, 1.0)]
+
+
+@numba.njit(cache=False)
+def _slope_sweep(mu, u, halley, x, steps, width):
+    for i in range(u.size):
+        x[i], steps[i], width[i] = microfacet.beckmann_visible_slope_search(mu, u[i], halley)
+
+
+def _sweep(mu, u, halley=True):
+    x, steps, width = np.empty(u.size), np.empty(u.size, np.int64), np.empty(u.size)
+    _slope_sweep(mu, u, halley, x, steps, width)
+    return x, steps, width
+
+
+def _cdf_tail(mu, x):
+    """C(mu) - C(x) over C(mu) in closed form with scipy's erfc (digits cancel only for
+    1 - u below ~1e-9, which the sweep stays above)."""
+    k = 0.5 * math.sqrt(math.pi) * mu
+    total = k * special.erfc(-mu) + 0.5 * math.exp(-mu * mu)
+    return (k * (special.erfc(x) - special.erfc(mu)) + 0.5 * (math.exp(-mu * mu)
+                                                              - np.exp(-x * x))) / total
+
+
+@pytest.mark.parametrize("theta, alpha", OLD_BANDS)
+def test_beckmann_visible_slope_inverts_the_cdf_at_every_u_near_1(theta, alpha):
+    """A dense sweep of u in [0.99, 1) at steps of 2e-7, a fifth of the narrowest band the
+    unbracketed iteration failed in, and on to 1 - u = 1e-9: every slope solves
+    S(x) = (1 - u) C(mu) to 1e-7 of 1 - u, and x rises with u."""
+    mu = 1.0 / math.tan(math.radians(theta)) / alpha
+    u = np.concatenate([0.99 + 2e-7 * np.arange(49_999), 1.0 - np.geomspace(1e-8, 1e-9, 20)])
+    x, steps, _ = _sweep(mu, u)
+    tail = _cdf_tail(mu, x)
+    worst = np.max(np.abs(tail - (1.0 - u)) / (1.0 - u))
+    assert worst < 1e-7, (theta, alpha, worst, u[np.argmax(np.abs(tail - (1.0 - u)) / (1.0 - u))])
+    assert np.all(np.diff(x) >= -1e-12), (theta, alpha)
+    assert steps.max() <= 12, steps.max()
+
+
+def _slope_grid():
+    mu = np.concatenate([[0.0, 1e-9, 1e-4], np.geomspace(1e-3, 1e6, 120)])
+    k = np.arange(1, 17)
+    u = np.unique(np.concatenate([np.linspace(0.0, 1.0, 801)[:-1], 10.0 ** -k, 1.0 - 10.0 ** -k,
+                                  [2.0 ** -54, 1.0 - 2.0 ** -53]]))
+    return mu, u
+
+
+def test_beckmann_visible_slope_search_ends_converged():
+    """Over mu from 0 to 1e6 and u down to 1e-16 of either end, the search ends on a Halley
+    step below 1e-4 of the scale of x or on a bracket below SLOPE_TOL, never on its cap; and
+    pure bisection, the worst case the cap is sized for, reaches SLOPE_TOL within
+    log2((SLOPE_HI - SLOPE_LO) / SLOPE_TOL) + 1 evaluations and lands on the same slope (for
+    1 - u >= 1e-12: closer to 1, S(x) has too few digits to steer a bisection that far)."""
+    mu_grid, u = _slope_grid()
+    worst = 0
+    for mu in mu_grid:
+        x, steps, width = _sweep(mu, u)
+        worst = max(worst, steps.max())
+        xb, steps_b, width_b = _sweep(mu, u, halley=False)
+        assert np.all(width_b <= microfacet.SLOPE_TOL), mu
+        span = microfacet.SLOPE_HI - microfacet.SLOPE_LO
+        assert steps_b.max() <= math.ceil(math.log2(span / microfacet.SLOPE_TOL)) + 1
+        # 1e-9 of the scale of x: Halley's stop leaves errors ~1e-12, the bisection 4.5e-13
+        body = u <= 1.0 - 1e-12
+        np.testing.assert_allclose(x[body], xb[body], rtol=0.0, atol=1e-9, err_msg=mu)
+    assert worst < microfacet.MAX_STEPS
+    assert worst <= 30, worst  # measured: 22, in u within 1e-14 of 1 where S has no digits
+
+
+def test_beckmann_visible_slope_cap_follows_from_halving():
+    """MAX_STEPS evaluations halve the initial bracket 44 times (at least once in every three)
+    and 44 halvings bring it below SLOPE_TOL."""
+    span = microfacet.SLOPE_HI - microfacet.SLOPE_LO
+    halvings = (microfacet.MAX_STEPS - 1) // 3
+    assert span * 2.0 ** -halvings <= microfacet.SLOPE_TOL
+
+
+@pytest.mark.parametrize("mu", [0.0, 1e-3, 0.5, 2.0, 7.0, 8.0, 100.0, 1e6])
+def test_beckmann_visible_slope_bracket_holds_every_root(mu):
+    """C(SLOPE_LO) < 2^-54 C(mu), the smallest u the search takes, and C(mu) - C(SLOPE_HI) <
+    2^-53 C(mu), the smallest 1 - u of a double u < 1, with scipy's erfc and quad."""
+    k = 0.5 * math.sqrt(math.pi) * mu
+    total = k * special.erfc(-mu) + 0.5 * math.exp(-mu * mu)
+    lo = microfacet.SLOPE_LO
+    assert k * special.erfc(-lo) + 0.5 * math.exp(-lo * lo) < 2.0 ** -54 * total
+    if mu > microfacet.SLOPE_HI:
+        hi = microfacet.SLOPE_HI
+        tail = integrate.quad(lambda t: (mu - t) * math.exp(-t * t), hi, min(mu, hi + 12.0),
+                              epsabs=0.0, epsrel=1e-10)[0]
+        assert tail < 2.0 ** -53 * total
