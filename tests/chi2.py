@@ -10,6 +10,10 @@ because sharp lobes (exponent 1000) vary many orders of magnitude inside one cel
 density does not cover (invalid samples with pdf 0 and delta-lobe samples with pdf inf) form one
 extra cell whose expected count is ``N (1 - integral of pdf)``, so a sampler that drops or adds
 mass is caught too.
+
+The cells are uniform in ``(cos theta, phi)`` by default; :meth:`Grid.focused` crowds them
+toward one direction (the mirror direction at grazing incidence, where the sharpest lobes pile
+up against the horizon), as Mitsuba's SphericalDomain resolves lobes about its pole.
 """
 
 import dataclasses
@@ -51,6 +55,49 @@ class Chi2Result:
                 f"pdf integral {self.pdf_integral:.6f}; uncovered samples "
                 f"{self.observed_extra} vs {self.expected_extra:.1f} expected; worst {cells}; "
                 f"problems: {self.problems or 'none'}")
+
+
+@dataclasses.dataclass(frozen=True)
+class Grid:
+    """Cell edges: ``cos_edges`` rising from 0 to 1, ``phi_edges`` rising over one turn from
+    any start (azimuths are taken modulo 2 pi from ``phi_edges[0]``)."""
+
+    cos_edges: np.ndarray
+    phi_edges: np.ndarray
+
+    @property
+    def shape(self):
+        return len(self.cos_edges) - 1, len(self.phi_edges) - 1
+
+    @classmethod
+    def uniform(cls, shape):
+        """``shape`` = (cells in cos theta over [0, 1], cells in phi over [-pi, pi])."""
+        n_c, n_p = shape
+        return cls(np.linspace(0.0, 1.0, n_c + 1), np.linspace(-math.pi, math.pi, n_p + 1))
+
+    @classmethod
+    def focused(cls, shape, toward):
+        """Cells whose size falls quadratically toward the direction ``toward`` (3,): in cos
+        theta on both sides of its cos theta (each side's share of the cells in proportion to
+        the square root of its length, so the smallest cells on the two sides match), and in
+        phi on both sides of its azimuth. The smallest cells are 1/n^2 of their side, where a
+        uniform grid's are 1/n: a lobe of width 0.03 rad at the horizon spans several cells in
+        each coordinate."""
+        n_c, n_p = shape
+        c0 = float(min(max(toward[2], 0.0), 1.0))
+        below = int(round(n_c * math.sqrt(c0) / (math.sqrt(c0) + math.sqrt(1.0 - c0))))
+        below = min(max(below, 1 if c0 > 0.0 else 0), n_c - (1 if c0 < 1.0 else 0))
+        s_lo = np.linspace(1.0, 0.0, below + 1)
+        s_hi = np.linspace(0.0, 1.0, n_c - below + 1)
+        cos_edges = np.concatenate([c0 - c0 * s_lo ** 2, (c0 + (1.0 - c0) * s_hi ** 2)[1:]])
+        cos_edges[0], cos_edges[-1] = 0.0, 1.0
+        phi0 = math.atan2(toward[1], toward[0])
+        s = np.linspace(-1.0, 1.0, n_p + 1)
+        return cls(cos_edges, phi0 + math.pi * np.sign(s) * s * s)
+
+
+def _as_grid(grid):
+    return grid if isinstance(grid, Grid) else Grid.uniform(grid)
 
 
 def sidak(significance, n_tests):
@@ -96,7 +143,7 @@ def _split(rects):
 
 
 def integrate_cells(density, shape, order=5, atol=1e-8, rtol=1e-4, max_level=10):
-    """Integral of a solid-angle density over each cell of the ``(cos theta, phi)`` grid.
+    """Integral of a solid-angle density over each cell of a ``(cos theta, phi)`` grid.
 
     Adaptive Gauss-Legendre: a rectangle's estimate is accepted when splitting it in four
     changes it by less than ``atol`` times its size relative to the grid (the square root of
@@ -109,19 +156,21 @@ def integrate_cells(density, shape, order=5, atol=1e-8, rtol=1e-4, max_level=10)
     ----------
     density : callable
         Maps directions ``(m, 3)`` to densities ``(m,)``.
-    shape : (int, int)
-        Number of cells in ``cos theta`` (over [0, 1]) and in ``phi`` (over [-pi, pi]).
+    shape : (int, int) or Grid
+        Number of cells of a uniform grid in ``cos theta`` (over [0, 1]) and in ``phi`` (over
+        [-pi, pi]), or the cells' edges.
 
     Returns
     -------
-    cells : ndarray, shape ``shape``
+    cells : ndarray, shape ``grid.shape``
     converged : bool
         False when some rectangle hit ``max_level`` without meeting the tolerance.
     """
-    n_c, n_p = shape
+    grid = _as_grid(shape)
+    shape = n_c, n_p = grid.shape
     nodes, weights = _gauss_legendre(order)
-    te = np.arccos(np.linspace(0.0, 1.0, n_c + 1))  # theta edges of the cos-theta cells
-    pe = np.linspace(-math.pi, math.pi, n_p + 1)
+    te = np.arccos(grid.cos_edges)  # theta edges of the cos-theta cells
+    pe = grid.phi_edges
     ic, ip = np.meshgrid(np.arange(n_c), np.arange(n_p), indexing="ij")
     rects = np.stack([te[ic + 1], te[ic], pe[ip], pe[ip + 1]], -1).reshape(-1, 4)
     owner = np.arange(n_c * n_p)
@@ -143,12 +192,15 @@ def integrate_cells(density, shape, order=5, atol=1e-8, rtol=1e-4, max_level=10)
 
 
 def histogram(wo, shape):
-    """Counts of directions ``(m, 3)`` in the ``(cos theta, phi)`` cells."""
-    n_c, n_p = shape
-    i = np.clip((wo[:, 2] * n_c).astype(np.int64), 0, n_c - 1)
-    phi = np.arctan2(wo[:, 1], wo[:, 0])
-    j = np.clip(((phi + math.pi) / (2.0 * math.pi) * n_p).astype(np.int64), 0, n_p - 1)
-    return np.bincount(i * n_p + j, minlength=n_c * n_p).reshape(shape).astype(float)
+    """Counts of directions ``(m, 3)`` in the ``(cos theta, phi)`` cells of a grid (``shape``
+    as for :func:`integrate_cells`)."""
+    grid = _as_grid(shape)
+    n_c, n_p = grid.shape
+    i = np.clip(np.searchsorted(grid.cos_edges, wo[:, 2], side="right") - 1, 0, n_c - 1)
+    phi0 = grid.phi_edges[0]
+    phi = phi0 + np.mod(np.arctan2(wo[:, 1], wo[:, 0]) - phi0, 2.0 * math.pi)
+    j = np.clip(np.searchsorted(grid.phi_edges, phi, side="right") - 1, 0, n_p - 1)
+    return np.bincount(i * n_p + j, minlength=n_c * n_p).reshape(n_c, n_p).astype(float)
 
 
 def _pool(observed, expected, threshold):
@@ -205,8 +257,8 @@ def chi2_test(sample, pdf, n_samples=1_000_000, shape=(50, 100), seed=0):
     pdf : callable
         Maps directions ``(m, 3)`` to the density ``(m,)`` that ``sample`` claims to follow.
     n_samples : int
-    shape : (int, int)
-        Cells in ``cos theta`` and in ``phi``.
+    shape : (int, int) or Grid
+        Cells of a uniform grid in ``cos theta`` and in ``phi``, or the cells' edges.
     seed : int
 
     Returns

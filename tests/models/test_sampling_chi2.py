@@ -1,8 +1,10 @@
 """Chi-square tests of every family's importance sampling against its pdf (see tests/chi2.py).
 
-Each case draws 10^6 samples for one incident direction (normal, 45 deg, 80 deg, and an oblique
-azimuth for anisotropic models) and is tested at 1 % overall significance with a Sidak
-correction for the number of cases. Negative controls prove the harness rejects wrong densities.
+Each case draws 10^6 samples for one incident direction (normal, 45 deg, the grazing 80, 85
+and 89 deg, and an oblique azimuth for anisotropic models) and is tested at 1 % overall
+significance with a Sidak correction for the number of cases. At grazing incidence the cells
+crowd toward the mirror direction (``Grid.focused``), so that lobes squeezed against the horizon
+span many cells. Negative controls prove the harness rejects wrong densities, on both grids.
 """
 
 import math
@@ -13,14 +15,27 @@ import pytest
 
 import brdf
 from brdf.models import MODELS
-from chi2 import chi2_test, directions, integrate_cells, sidak
-from model_cases import CASES, all_specs
+from chi2 import Grid, chi2_test, directions, histogram, integrate_cells, sidak
+from model_cases import CASES, SUMS, all_specs
 
 N_SAMPLES = 1_000_000
 SIGNIFICANCE = 0.01
-#: (theta_i, phi_i) in degrees: every model gets the first three, anisotropic ones also the last.
+SHAPE = (50, 100)
+#: (theta_i, phi_i) in degrees: every model gets these, anisotropic ones also INCIDENT_ANISO,
+#: and the STEEP_SPECS also STEEP.
 INCIDENT = [(0.0, 0.0), (45.0, 0.0), (80.0, 0.0)]
 INCIDENT_ANISO = (60.0, 50.0)
+STEEP = [(85.0, 0.0), (89.0, 0.0)]
+#: Every microfacet spec (the family whose sampler had grazing bands), the first and the last
+#: of each other family (its broadest and sharpest or most optioned lobes), Ward's sharpest,
+#: and the first and last mixture: every family at 85 and 89 deg within the suite's budget.
+STEEP_SPECS = (
+    [spec for family in ("ggx", "beckmann") for spec in CASES[family]]
+    + [specs[i] for family, specs in CASES.items() if family not in ("ggx", "beckmann")
+       for i in sorted({0, len(specs) - 1})]
+    + ["ward(rho_s=0.5, alpha=0.05, alpha_y=0.25)", SUMS[0], SUMS[-1]])
+#: From this incidence on, the cells crowd toward the mirror direction.
+GRAZING = 80.0
 
 
 def _has_delta(spec):
@@ -29,7 +44,8 @@ def _has_delta(spec):
 
 def _incident(spec):
     model = brdf.parse(spec)
-    return INCIDENT + ([INCIDENT_ANISO] if model.is_anisotropic else [])
+    return (INCIDENT + ([INCIDENT_ANISO] if model.is_anisotropic else [])
+            + (STEEP if spec in STEEP_SPECS else []))
 
 
 def _wi(theta_deg, phi_deg):
@@ -38,6 +54,12 @@ def _wi(theta_deg, phi_deg):
 
 def _seed(*key):
     return zlib.crc32(repr(key).encode())
+
+
+def _grid(theta_i, phi_i):
+    if theta_i < GRAZING:
+        return Grid.uniform(SHAPE)
+    return Grid.focused(SHAPE, _wi(theta_i, phi_i) * [-1.0, -1.0, 1.0])
 
 
 def _cases(select):
@@ -80,7 +102,8 @@ def test_sampling_follows_pdf(spec, theta_i, phi_i):
     model = brdf.parse(spec)
     wi = _wi(theta_i, phi_i)
     result = chi2_test(lambda u: model.sample(wi, u), lambda wo: model.pdf(wi, wo),
-                       N_SAMPLES, seed=_seed(spec, theta_i, phi_i))
+                       N_SAMPLES, _grid(theta_i, phi_i), seed=_seed(spec, theta_i, phi_i))
+    print(f"chi2 {spec} @ {theta_i:g},{phi_i:g}: p = {result.p_value:.4g}, dof {result.dof}")
     assert result.pdf_integral <= 1.0 + 1e-6, result.describe()
     assert not result.rejected(LEVEL), result.describe()
 
@@ -130,6 +153,37 @@ def test_harness_rejects_a_slightly_wrong_roughness():
     wi = _wi(45.0, 0.0)
     right, wrong = brdf.parse("ggx(alpha=0.2)"), brdf.parse("ggx(alpha=0.22)")
     _rejects(lambda u: right.sample(wi, u), lambda wo: wrong.pdf(wi, wo))
+
+
+def test_focused_grid_cells_tile_the_hemisphere():
+    """Edges rise over [0, 1] and one turn, the cells crowd toward the mirror direction at 89
+    deg, and a lobe's cell integrals on the focused grid sum to its integral (1 for the
+    normalised cosine power about the normal, whose cells are exact)."""
+    toward = _wi(89.0, 0.0) * [-1.0, -1.0, 1.0]
+    grid = Grid.focused(SHAPE, toward)
+    assert grid.shape == SHAPE
+    assert grid.cos_edges[0] == 0.0 and grid.cos_edges[-1] == 1.0
+    assert np.all(np.diff(grid.cos_edges) > 0.0) and np.all(np.diff(grid.phi_edges) > 0.0)
+    assert grid.phi_edges[-1] - grid.phi_edges[0] == pytest.approx(2.0 * math.pi)
+    near = np.searchsorted(grid.cos_edges, toward[2])
+    assert np.diff(grid.cos_edges)[near - 1] < 1e-3 < 1.0 / SHAPE[0]
+    assert np.diff(grid.phi_edges).min() < 2e-3
+    n = 50.0
+    cells, converged = integrate_cells(lambda w: (n + 1) / (2 * math.pi) * w[:, 2] ** n, grid)
+    c = grid.cos_edges
+    exact = np.diff(c ** (n + 1))[:, None] * np.diff(grid.phi_edges)[None, :] / (2 * math.pi)
+    assert converged
+    np.testing.assert_allclose(cells, exact, rtol=1e-6, atol=1e-12)
+    wo = directions(np.array([0.5 * (c[near - 1] + c[near])]), np.array([math.pi]))
+    assert histogram(wo, grid)[near - 1].sum() == 1.0
+
+
+def test_harness_rejects_a_slightly_wrong_roughness_at_grazing_incidence():
+    wi = _wi(85.0, 0.0)
+    right, wrong = brdf.parse("ggx(alpha=0.05)"), brdf.parse("ggx(alpha=0.055)")
+    result = chi2_test(lambda u: right.sample(wi, u), lambda wo: wrong.pdf(wi, wo), N_SAMPLES,
+                       _grid(85.0, 0.0), seed=2)
+    assert result.rejected(LEVEL), result.describe()
 
 
 def test_harness_rejects_a_tilted_pdf():
