@@ -238,8 +238,8 @@ def beckmann_visible_slope_search(mu, u, halley):
     number of CDF evaluations spent and the width of the final bracket.
 
     Solves C(x) = u C(mu) on x < mu, where C(x) = mu sqrt(pi)/2 erfc(-x) + exp(-x^2)/2 is the
-    CDF of the density (mu - x) exp(-x^2) (Heitz & d'Eon 2014, section 5.2, eq. 8 integrated;
-    erfc(-x) rather than 1 + erf(x) keeps the left tail's precision). C rises strictly, so the
+    CDF of the visible-slope density (mu - x) exp(-x^2) of Heitz & d'Eon 2014, section 5.2
+    (erfc(-x) rather than 1 + erf(x) keeps the left tail's precision). C rises strictly, so the
     root stays inside a bracket [lo, hi], first [SLOPE_LO, min(mu, SLOPE_HI)], that every
     evaluation narrows (Jakob 2014, "An Improved Visible Normal Sampling Routine for the
     Beckmann Distribution", brackets it likewise in the erf domain). Halley's method runs on
