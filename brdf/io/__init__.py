@@ -16,6 +16,7 @@ recognises.
 
 import hashlib
 import importlib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 

@@ -252,4 +252,4 @@ def test_a_bad_starts_option_is_one_line_exit_2(value, tmp_path, capsys):
                     ["batch", str(path), "lambert", "-o", str(tmp_path / "out")]):
         status, out, err = run(capsys, *command, "--starts", value)
         assert status == 2
-        assert_one_error_line(err, "--starts", "integer >= 1")
+        assert_one_error_line(err, "--starts", "fit starts (local runs) in [1, 100000]")
