@@ -96,6 +96,12 @@ class _Lobe:
             ps = [p for p in free if p.declared == d]
             if ps:
                 self.shape.append((n, d, _grid(ps[0].lower, ps[0].upper, ps[0].log)))
+        # declared orientations of a power law: one more grid dimension, the pattern's index
+        # (named None), where every channel's coefficients are free to take it
+        self.directions = hints.directions if self.power is not None else ()
+        if self.directions and self.free_channels.all():
+            self.shape.append(("direction", None,
+                               np.arange(len(self.directions), dtype=float)))
         self.prefix = prefix
 
     def unit(self, values):
@@ -204,7 +210,12 @@ def candidates(problem, samples=None):
         for lobe in lobes:
             keys.append(tuple(point[i:i + len(lobe.shape)]))
             for _, d, _ in lobe.shape:
-                trial[d] = np.broadcast_to(point[i], np.shape(trial[d])).copy()
+                if d is None:  # a declared pattern of the coefficients (Sobol: nearest index)
+                    pattern = lobe.directions[int(round(point[i]))]
+                    for name, v in zip(lobe.scale_names, pattern):
+                        trial[name] = np.full(np.shape(trial[name]), v)
+                else:
+                    trial[d] = np.broadcast_to(point[i], np.shape(trial[d])).copy()
                 i += 1
         columns, fixed = [], np.zeros_like(z)
         for l, lobe in enumerate(lobes):

@@ -144,12 +144,18 @@ class Start:
     power : str or None
         When f scales as (scale factor)^p with p this parameter (Lafortune's exponent n), the
         scale parameters are multiplied by k^(1/p) to scale f by k.
+    directions : tuple of tuples
+        For a power law, the patterns of the scale parameters (up to their common factor) the
+        start tries besides the spec's own, one more grid dimension: Lafortune's forward,
+        retro-reflective and diffuse-like lobes. A lobe's orientation is no width, and no
+        least squares finds it: without these the start only knows the spec's orientation.
 
     A family that declares nothing keeps its spec values in the start.
     """
 
-    def __init__(self, scale=(), shape=(), power=None):
+    def __init__(self, scale=(), shape=(), power=None, directions=()):
         self.scale, self.shape, self.power = tuple(scale), tuple(shape), power
+        self.directions = tuple(tuple(float(v) for v in d) for d in directions)
 
 
 def _fmt(x):

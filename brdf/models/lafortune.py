@@ -59,8 +59,10 @@ class Lafortune(Model):
         Param("n", 20.0, (0.0, 1e5), per_channel=True, prior="log", aliases=("exponent",),
               fit_bounds=(1e-2, 1e4), doc="exponent (larger is a narrower lobe)"),
     )
-    # f = (C . w)^n: multiplying C by k^(1/n) multiplies f by k (eq. 4)
-    START = Start(scale=("cx", "cy", "cz"), shape=("n",), power="n")
+    # f = (C . w)^n: multiplying C by k^(1/n) multiplies f by k (eq. 4); the lobes of section 4:
+    # forward (Cx = Cy < 0 < Cz), retro-reflective (Cx = Cy > 0) and diffuse-like (Cx = Cy = 0)
+    START = Start(scale=("cx", "cy", "cz"), shape=("n",), power="n",
+                  directions=((-1.0, -1.0, 1.0), (1.0, 1.0, 1.0), (0.0, 0.0, 1.0)))
 
     @property
     def anisotropic(self):
