@@ -340,7 +340,7 @@ def test_load_report_refusals(tmp_path):
     deep.write_text("[" * 100_000 + "]" * 100_000)
     with pytest.raises(FormatError) as e:
         brdf.load_report(deep)
-    _one_line(e, "deep.json", "nested too deeply")
+    _one_line(e, "deep.json", "nested more than 100 levels deep")
     listed = tmp_path / "listed.json"
     listed.write_text(json.dumps({"schema": "brdf.fit/1", "spec": "lambert",
                                   "model": {"model": "lambert", "params": [0.5]},

@@ -130,11 +130,8 @@ def write(table, path, format=None, force=False):
 
     The file appears complete or not at all; an existing file is kept unless ``force``.
     """
+    from ..models.base import Model
     from ..table import Table
-    if not isinstance(table, Table):
-        hint = ("; write saves measured tables: measure the model first (brdf.measure) or save "
-                "its spec (str(model)) or model.to_dict()" if hasattr(table, "to_dict") else "")
-        raise InputError(f"write: table must be a brdf.Table, got {type(table).__name__}{hint}")
     path = _path_argument(path, "write")
     if not isinstance(force, bool):
         raise InputError(f"write: force must be True or False, got {force!r}")
@@ -143,6 +140,12 @@ def write(table, path, format=None, force=False):
         writable = sorted(name for name, m in formats().items() if hasattr(m, "write"))
         raise InputError(f"format {module.FORMAT} is read-only; write one of: "
                          f"{', '.join(writable)}")
+    # a fixed-grid format (MERL) resamples a model at its nodes; the others need samples
+    if not (isinstance(table, Table) or (isinstance(table, Model)
+                                         and getattr(module, "WRITES_MODELS", False))):
+        hint = ("; write saves measured tables: measure the model first (brdf.measure) or save "
+                "its spec (str(model)) or model.to_dict()" if hasattr(table, "to_dict") else "")
+        raise InputError(f"write: table must be a brdf.Table, got {type(table).__name__}{hint}")
     with atomic_output(path, force) as tmp:
         module.write(table, tmp)
     return Path(path)

@@ -30,6 +30,8 @@ __all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "write", "MerlTable", "check
 
 FORMAT = "merl"
 EXTENSIONS = (".binary",)
+#: write() takes a model too and resamples it at the grid nodes
+WRITES_MODELS = True
 
 #: Grid resolution (theta_h, theta_d, phi_d), DESIGN.md section 6.
 SHAPE = (90, 90, 180)

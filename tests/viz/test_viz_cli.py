@@ -55,7 +55,7 @@ def test_lobe_of_a_report_draws_its_measured_input(capsys, files, tmp_path):
 
 @pytest.mark.parametrize("argv, fragments", [
     (["--theta-i", "95"], ["--theta-i", "outside [0, 90]"]),
-    (["--theta-i", "90"], ["theta_i 90", "[0, 90)"]),
+    (["--theta-i", "90"], ["--theta-i", "90", "[0, 90)"]),
     (["--theta-i", "abc"], ["--theta-i", "not a number"]),
     (["--channel", "5"], ["channel 5 does not exist"]),
 ])
