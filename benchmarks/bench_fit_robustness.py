@@ -91,10 +91,8 @@ def load(how):
     return table
 
 
-def local_polish(problem, x0, max_evals, tol):
-    """LD_LBFGS from ``x0`` in the problem's box: the lowest loss it saw (nlopt may raise on a
-    round-off stop without returning its point)."""
-    import nlopt
+def tracked(problem):
+    """An nlopt objective of the problem's loss and the one-item list of the lowest loss it saw."""
     best = [math.inf]
 
     def objective(x, grad):
@@ -104,6 +102,14 @@ def local_polish(problem, x0, max_evals, tol):
             loss = problem.loss(x)
         best[0] = min(best[0], loss) if math.isfinite(loss) else best[0]
         return loss
+    return objective, best
+
+
+def local_polish(problem, x0, max_evals, tol):
+    """LD_LBFGS from ``x0`` in the problem's box: the lowest loss it saw (nlopt may raise on a
+    round-off stop without returning its point)."""
+    import nlopt
+    objective, best = tracked(problem)
 
     opt = nlopt.opt(nlopt.LD_LBFGS, len(x0))
     opt.set_lower_bounds(problem.lower)
@@ -123,15 +129,7 @@ def mlsl(problem, max_evals, tol, seed):
     """nlopt G_MLSL_LDS with an LD_LBFGS local search over the box: the lowest loss seen."""
     import nlopt
     n = len(problem.free)
-    best = [math.inf]
-
-    def objective(x, grad):
-        if grad.size:
-            loss, grad[:] = problem.loss_and_gradient(x)
-        else:
-            loss = problem.loss(x)
-        best[0] = min(best[0], loss) if math.isfinite(loss) else best[0]
-        return loss
+    objective, best = tracked(problem)
 
     nlopt.srand(seed)
     local = nlopt.opt(nlopt.LD_LBFGS, n)
