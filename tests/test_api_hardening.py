@@ -216,6 +216,28 @@ def test_table_constructor():
     assert len(t) == 3
 
 
+def test_read_names_the_file_when_its_samples_are_refused(tmp_path, monkeypatch):
+    """A reader whose samples Table refuses (an InputError without the path) is reported with
+    the file's name in front; a reader's own FormatError passes unchanged."""
+    import brdf.io.gonio_csv as gonio_csv
+    path = tmp_path / "scan.csv"
+    path.write_text("theta_i,phi_i,theta_o,phi_o,brdf\n10,0,20,180,0.5\n")
+
+    def refused(p, **options):
+        brdf.Table(np.tile(UP, (1, 1)), np.tile(UP, (1, 1)), [[np.nan]])
+
+    monkeypatch.setattr(gonio_csv, "read", refused)
+    with pytest.raises(InputError) as e:
+        brdf.read(path)
+    _one_line(e, str(path), "values", "NaN")
+    assert str(e.value).startswith(f"{path}: ")
+    monkeypatch.undo()
+    path.write_text("theta_i,phi_i,theta_o,phi_o,brdf\n10,0,20,180,nan\n")
+    with pytest.raises(FormatError) as e:
+        brdf.read(path)
+    assert str(e.value).count(str(path)) == 1
+
+
 def test_table_albedo_resolution(table):
     for resolution in (0, 1, -4, 2.5, 10 ** 6):
         with pytest.raises(InputError, match="albedo: resolution"):

@@ -112,7 +112,15 @@ def read(path, format=None, **options):
     """
     path = _path_argument(path, "read")
     module = _named(format) if format is not None else format_of(path)
-    return module.read(path, **options)
+    try:
+        return module.read(path, **options)
+    except FormatError:
+        raise
+    except InputError as e:
+        # a reader's samples refused by Table (all NaN, below the horizon, ...): name the file
+        if path in str(e):
+            raise
+        raise InputError(f"{path}: {e}") from e
 
 
 def _path_argument(path, what):
