@@ -168,6 +168,8 @@ def test_library_arguments_from_the_command_line(tmp_path, monkeypatch):
     (["synth", SPEC, "--geometry", "random:1000000000000", "-o", "s.csv"], "random:"),
     (["synth", SPEC, "--geometry", "grid:0.01,0.01", "-o", "s.csv"], "grid:0.01,0.01"),
     (["synth", SPEC, "--geometry", "inplane:0.0001", "-o", "s.csv"], "inplane:0.0001"),
+    (["lobe", SPEC, "--theta-i", "10,30,50,70", "--resolution", "1024", "-o", "l.png"],
+     "4 lobes at resolution 1024"),
 ])
 def test_requests_larger_than_memory_are_refused_before_allocating(argv, fragment, tmp_path,
                                                                     monkeypatch):

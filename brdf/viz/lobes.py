@@ -19,6 +19,7 @@ import textwrap
 
 import numpy as np
 
+from .. import arguments
 from ..errors import BRDFError, InputError, OutputError
 from ..geometry import reflect, spherical_to_cartesian
 from .samples import (channel_count, channel_label, channel_values, incidence, is_table,
@@ -31,6 +32,13 @@ __all__ = ["lobe_surface", "lobe_plotter", "plot_lobes", "has_display", "LOG_DEC
 LOG_DECADES = 3.0
 #: Debian packages that give VTK an off-screen OpenGL context (EGL with Mesa's software driver).
 HEADLESS_PACKAGES = ("libegl1", "libgl1-mesa-dri")
+#: Largest ``resolution`` of a lobe: 2 n^2 outgoing directions per incidence.
+MAX_RESOLUTION = 4096
+#: Peak bytes per outgoing direction of a drawn lobe, counted once per incidence and once more
+#: for the plotter's shared state. Measured 2026-12-03 (``lambert + ggx``, resolution 512,
+#: 526,338 directions): 695, 809 and 952 MB for 1, 2 and 3 incidences, 474 MB at resolution
+#: 64; the constant rounds those increments (about 250 B per direction per incidence) up.
+LOBE_BYTES = 300
 #: Colours: incident direction, mirror direction, normal, measured samples, surface patch.
 COLOURS = {"wi": "#e07b00", "mirror": "#2b6cb0", "normal": "black", "samples": "black",
            "patch": "#c8c8c8"}
@@ -121,9 +129,8 @@ def lobe_surface(subject, wi, *, cosine=True, log=False, channel=None, resolutio
     """
     import pyvista
     wi = np.asarray(wi, dtype=float)
-    if resolution < 4:
-        raise InputError(f"resolution must be at least 4 polar steps, got {resolution}")
-    wo = _hemisphere(int(resolution))
+    resolution = _resolution(resolution, 1, "lobe_surface")
+    wo = _hemisphere(resolution)
     values = lobe_values(subject, wi, wo, cosine, channel)
     if not np.isfinite(values).any():
         raise InputError(f"{subject}: no finite value over the hemisphere at this incidence")
@@ -135,6 +142,16 @@ def lobe_surface(subject, wi, *, cosine=True, log=False, channel=None, resolutio
     grid = pyvista.StructuredGrid(points[..., 0], points[..., 1], points[..., 2])
     grid.point_data["value"] = values.ravel(order="F")
     return grid.extract_surface(algorithm="dataset_surface")
+
+
+def _resolution(resolution, incidences, what):
+    """``resolution`` checked (an integer of polar steps) and the memory its lobes need."""
+    from ..memory import require
+    resolution = arguments.integer(resolution, f"{what}: resolution", 4, MAX_RESOLUTION)
+    directions = (2 * resolution + 1) * (resolution + 1)
+    require(directions * LOBE_BYTES * (incidences + 1),
+            f"{incidences} lobe{'s' if incidences > 1 else ''} at resolution {resolution}")
+    return resolution
 
 
 def _units(cosine):
@@ -236,7 +253,8 @@ def lobe_plotter(subject, theta_i=(30.0,), phi_i=0.0, *, data=None, cosine=True,
     off_screen = (not has_display()) if off_screen is None else bool(off_screen)
     if off_screen:
         _prepare_off_screen()
-    peak = _peak(subject, directions, cosine, channel, int(resolution))
+    resolution = _resolution(resolution, len(directions), "lobe_plotter")
+    peak = _peak(subject, directions, cosine, channel, resolution)
     if not peak > 0.0:
         raise InputError(f"{subject}: the lobe is zero everywhere at these incidences")
     n = len(directions)
@@ -244,7 +262,7 @@ def lobe_plotter(subject, theta_i=(30.0,), phi_i=0.0, *, data=None, cosine=True,
     plotter = pyvista.Plotter(shape=(1, n), off_screen=off_screen, window_size=list(size),
                               border=False)
     plotter.set_background("white")
-    options = {"cosine": cosine, "log": log, "channel": channel, "resolution": int(resolution)}
+    options = {"cosine": cosine, "log": log, "channel": channel, "resolution": resolution}
     which = channel_label(subject, channel)
     for k, (wi, t) in enumerate(zip(directions, angles)):
         plotter.subplot(0, k)

@@ -12,7 +12,8 @@ import brdf
 from brdf.errors import BRDFError, InputError, OutputError
 from brdf.geometry import spherical_to_cartesian
 from brdf.viz import lobes, plot_lobes
-from brdf.viz.lobes import lobe_surface
+from brdf.models import Lambert
+from brdf.viz.lobes import MAX_RESOLUTION, lobe_plotter, lobe_surface
 from brdf.viz.samples import in_plane, incidence, samples_near
 from pictures import changed_fraction, distinct_colours, drawn_fraction, read_png
 
@@ -173,3 +174,11 @@ def test_dense_tables_show_the_samples_taken_closest_to_the_incidence():
     sparse = brdf.measure(model, "random:800", "none", seed=2)
     assert len(samples_near(sparse, wi, max_points=None)[0]) == len(
         samples_near(sparse, wi, tol_deg=2.5, max_points=None)[0])
+
+
+@pytest.mark.parametrize("resolution", [3, 2.5, "48", True, MAX_RESOLUTION + 1])
+def test_resolution_is_an_integer_in_range(resolution):
+    with pytest.raises(InputError, match="resolution must be an integer from 4"):
+        lobe_surface(Lambert(), incidence(30.0), resolution=resolution)
+    with pytest.raises(InputError, match="lobe_plotter: resolution"):
+        lobe_plotter(Lambert(), (30.0,), resolution=resolution, off_screen=True)
