@@ -37,9 +37,13 @@ STEP = np.finfo(float).eps ** (1.0 / 3.0)
 #: Samples per block of the compiled loss: the block's directions and terms stay in cache while
 #: every parameter vector of a batch is evaluated on it.
 BLOCK = 2048
-#: Samples per block of the loss-and-gradient pass: its block of derivatives (parameters x
-#: samples x channels) stays in cache (lambert + ggx, RGB: 16 x 512 x 3 doubles, 196 kB).
+#: Samples per block of the loss-and-gradient pass, at most: its block of derivatives
+#: (parameters x samples x channels) stays in cache (lambert + ggx, RGB: 16 x 512 x 3 doubles,
+#: 196 kB). Models with more parameters or channels take fewer samples per block, down to
+#: MIN_GRADIENT_BLOCK (a 31-channel lambert + ggx packs 128 parameters: 8 samples).
 GRADIENT_BLOCK = 512
+GRADIENT_BLOCK_BYTES = 16 * GRADIENT_BLOCK * 3 * 8
+MIN_GRADIENT_BLOCK = 8
 _INDEXED = re.compile(r"^(?P<base>.+)\[(?P<index>\d+)\]$")
 
 
@@ -221,6 +225,9 @@ class Problem:
         self._needed = np.zeros(len(self._packed), dtype=np.bool_)
         for p in self.free:
             self._needed[p.slots] = True
+        per_sample = 8 * len(self._packed) * nch
+        self._gradient_block = int(np.clip(GRADIENT_BLOCK_BYTES // per_sample,
+                                           MIN_GRADIENT_BLOCK, GRADIENT_BLOCK))
         self.terms = losses.terms(loss, self.samples, len(self.free))
 
     def restricted(self, samples):
@@ -456,12 +463,12 @@ class Problem:
         x = np.asarray(x, dtype=float)
         params = self.packed(x)[0]
         s, t = self.samples, terms or self.terms
-        blocks = -(-len(s.wi) // GRADIENT_BLOCK)
+        block = self._gradient_block
+        blocks = -(-len(s.wi) // block)
         loss = np.zeros((blocks, self.channels))
         dq = np.zeros((blocks, len(params)))
         _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self.channels,
-                            s.wi, s.wo, t.scale, t.target, t.weight, t.offset, GRADIENT_BLOCK,
-                            loss, dq)
+                            s.wi, s.wo, t.scale, t.target, t.weight, t.offset, block, loss, dq)
         grad = self._in_x(dq.sum(axis=0) / t.norm, x)
         return float(loss.sum(axis=0).sum() / t.norm), grad
 
