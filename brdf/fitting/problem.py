@@ -215,6 +215,7 @@ class Problem:
         self.base = self._build({})
         compiled = self.base.compile(nch)
         self._kinds, self._offsets, self._packed = compiled.kinds, compiled.offsets, compiled.params
+        self._slots = compiled.slots
         self.free = tuple(self._free_parameters())
         self.names = tuple(p.name for p in self.free)
         self.lower = np.array([p.to_x(p.lower) for p in self.free])
@@ -323,23 +324,13 @@ class Problem:
 
     def _locate(self, d):
         """Positions in the packed array of each entry of ``d`` (one per channel, or one for a
-        scalar), found by packing the model with probe values: the fitter then follows each
-        family's own layout (Fresnel terms pack a mode code first; an unset ``alpha_y`` mirrors
-        ``alpha``) without a second copy of it. The probes lie a thousandth of the way from the
-        working values to odd points of the box: far into the box, a Lafortune coefficient with
-        the working exponent (n = 1000) would overflow and be rejected."""
-        lo, hi = d.box
-        n = d.value.size
-        odd = lo + (hi - lo) * (0.1234567 + 0.7 * np.arange(n) / max(n, 1))
-        probes = d.value.reshape(-1) + 1e-3 * (odd - d.value.reshape(-1))
-        probe_model = self._build({d.name: probes.reshape(d.value.shape)})
-        packed = probe_model.compile(self.channels).params
-        changed = packed != self._packed
-        slots = [np.flatnonzero(changed & (packed == p)) for p in probes]
-        if any(len(s) == 0 for s in slots) or sum(len(s) for s in slots) != changed.sum():
-            raise RuntimeError(f"cannot locate {d.name} in the packed parameters of "
-                               f"{self.base}")
-        return slots
+        shared or scalar parameter), from the layout packing wrote (:class:`~brdf.models.base.
+        Layout`): a parameter another one falls back to (``alpha`` for an unset ``alpha_y``)
+        holds both positions."""
+        positions = self._slots[d.lobe][".".join(d.path)]
+        if d.value.ndim == 0:
+            return [np.sort(np.concatenate(positions))]
+        return positions
 
     def _difference_groups(self):
         """Coordinates moved together by the central differences: the channel entries of one

@@ -16,7 +16,8 @@ from ..arguments import integer, real
 from ..errors import InputError, ParameterError, SpecError
 from ..geometry import broadcast_shape, direction_array, flat_pairs, uniform_array
 
-__all__ = ["Param", "Choice", "Nested", "Start", "Component", "Model", "Sum", "Compiled", "sample_inputs"]
+__all__ = ["Param", "Choice", "Nested", "Start", "Component", "Model", "Sum", "Compiled", "Layout",
+           "sample_inputs"]
 
 
 class Param:
@@ -309,37 +310,86 @@ class Component:
                                 for i, v in enumerate(value)})
         return out
 
-    def _pack_value(self, decl, nch):
-        """Kernel layout of one parameter: per-channel -> nch floats, scalar -> 1, choice -> index."""
-        value = self._values.get(decl.name)
-        if value is None and isinstance(decl, Param):
-            value = self._values[decl.fallback]
-        if isinstance(decl, Choice):
-            return [float(decl.choices.index(value))]
-        if isinstance(value, Component):
-            return value.pack(nch)
-        if decl.per_channel:
-            return list(np.broadcast_to(value, (nch,)).astype(float))
-        return [float(value)]
+    def layout(self, nch):
+        """The flat float64 block this family's kernels read (declaration order), with the map
+        from each numeric parameter to its positions in it (:class:`Layout`).
+
+        A per-channel parameter packs ``nch`` floats, a scalar one, a choice its index, a
+        nested component (a Fresnel term) its own block. An unset parameter packs the value of
+        the one it falls back to (GGX's ``alpha_y`` -> ``alpha``), so the positions it fills
+        belong to that one: moving ``alpha`` moves both."""
+        layout = Layout()
+        for decl in self.PARAMS:
+            value, owner = self._values.get(decl.name), decl.name
+            if value is None and isinstance(decl, Param):
+                owner = decl.fallback
+                value = self._values[owner]
+            layout.append(decl, owner, value, nch)
+        return layout
 
     def pack(self, nch):
-        """Flat float64 parameter block read by this family's kernels, declaration order."""
-        out = []
-        for decl in self.PARAMS:
-            out.extend(self._pack_value(decl, nch))
-        return out
+        """Flat float64 parameter block read by this family's kernels (see :meth:`layout`)."""
+        return self.layout(nch).values
+
+
+class Layout:
+    """A component's packed parameter block: ``values`` (floats) and ``slots``, a dict from a
+    numeric parameter's name (``"alpha"``, nested ones as ``"fresnel.f0"``) to one list of
+    positions in ``values`` per channel (a per-channel parameter) or a single list (a scalar
+    one)."""
+
+    __slots__ = ("values", "slots")
+
+    def __init__(self):
+        self.values, self.slots = [], {}
+
+    def claim(self, name, positions):
+        """Give ``name`` the positions ``positions[c]`` of each of its entries ``c`` (a
+        parameter filling a fallback's slots adds to that one's)."""
+        have = self.slots.setdefault(name, [[] for _ in positions])
+        for entry, more in zip(have, positions):
+            entry.extend(more)
+
+    def append(self, decl, owner, value, nch):
+        """Pack parameter ``decl`` holding ``value`` whose positions belong to ``owner``."""
+        at = len(self.values)
+        if isinstance(decl, Choice):
+            self.values.append(float(decl.choices.index(value)))
+        elif isinstance(value, Component):
+            inner = value.layout(nch)
+            self.values.extend(inner.values)
+            for name, positions in inner.slots.items():
+                self.claim(f"{decl.name}.{name}", [[at + k for k in p] for p in positions])
+        elif decl.per_channel:
+            self.values.extend(np.broadcast_to(value, (nch,)).astype(float).tolist())
+            self.claim(owner, [[at + c] for c in range(nch)])
+        else:
+            self.values.append(float(value))
+            self.claim(owner, [[at]])
+
+    def pad(self, n):
+        """``n`` zeros no parameter owns."""
+        self.values.extend([0.0] * n)
 
 
 class Compiled:
-    """What the kernels see of a model: lobe kinds, parameter offsets, packed parameters."""
+    """What the kernels see of a model: lobe kinds, parameter offsets, packed parameters, and
+    where each lobe's parameters sit among them.
 
-    __slots__ = ("kinds", "offsets", "params", "nch")
+    ``slots[l][name]`` lists, per entry of lobe l's parameter ``name`` (one per channel, or a
+    single one for a scalar parameter), its positions in ``params`` (see :class:`Layout`)."""
 
-    def __init__(self, kinds, blocks, nch):
+    __slots__ = ("kinds", "offsets", "params", "nch", "slots")
+
+    def __init__(self, kinds, layouts, nch):
         self.kinds = np.asarray(kinds, dtype=np.int64)
-        self.offsets = np.concatenate([[0], np.cumsum([len(b) for b in blocks])]).astype(np.int64)
-        self.params = np.asarray([v for b in blocks for v in b], dtype=np.float64)
+        self.offsets = np.concatenate([[0], np.cumsum([len(b.values) for b in layouts])]
+                                      ).astype(np.int64)
+        self.params = np.asarray([v for b in layouts for v in b.values], dtype=np.float64)
         self.nch = int(nch)
+        self.slots = tuple({name: [np.sort(np.asarray(p, dtype=np.int64)) + offset for p in positions]
+                            for name, positions in b.slots.items()}
+                           for b, offset in zip(layouts, self.offsets))
 
     @property
     def args(self):
@@ -435,7 +485,7 @@ class Model(Component):
                 raise InputError(f"compile: nch={nch} but {self} has {self.channels} channels;"
                                  " expected nch equal to it (or a 1-channel model)")
         return Compiled([lobe.kind for lobe in self.lobes],
-                        [lobe.pack(nch) for lobe in self.lobes], nch)
+                        [lobe.layout(nch) for lobe in self.lobes], nch)
 
     def _compiled(self):
         cached = self.__dict__.get("_compiled_cache")

@@ -8,7 +8,7 @@ import math
 
 from .._jit import inline_kernel, kernel
 from ._registry import FRESNEL
-from .base import Component, Param
+from .base import Component, Layout, Param
 
 NONE, SCHLICK, DIELECTRIC, CONDUCTOR = 0, 1, 2, 3
 
@@ -19,14 +19,16 @@ class Fresnel(Component):
     code = NONE
     packed = ()  # names of the (up to two) per-channel parameters stored in a and b
 
-    def pack(self, nch):
-        out = [float(self.code)]
+    def layout(self, nch):
+        layout = Layout()
+        layout.values.append(float(self.code))
         for i in range(2):
             if i < len(self.packed):
-                out.extend(self._pack_value(self.declaration(self.packed[i]), nch))
+                decl = self.declaration(self.packed[i])
+                layout.append(decl, decl.name, self._values[decl.name], nch)
             else:
-                out.extend([0.0] * nch)
-        return out
+                layout.pad(nch)
+        return layout
 
 
 @FRESNEL.register

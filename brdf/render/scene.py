@@ -145,21 +145,6 @@ def names_file(text):
         suffix in m.EXTENSIONS for m in formats().values())
 
 
-def _lobe_slots(lobe, decl, nch):
-    """``(channel, position)`` of each slot of parameter ``decl`` in a lobe's packed block,
-    found by packing it with probe values; a parameter that an unset one falls back to (GGX's
-    alpha for alpha_y) fills that one's slots too."""
-    base = np.asarray(lobe.pack(nch))
-    lo, hi = decl.bounds
-    lo = lo if math.isfinite(lo) else -1.0
-    hi = hi if math.isfinite(hi) else lo + 2.0
-    probes = lo + (hi - lo) * (0.1234567 + 0.1 * np.arange(nch if decl.per_channel else 1))
-    moved = np.asarray(lobe.replace(**{decl.name: probes if decl.per_channel else probes[0]})
-                       .pack(nch))
-    return [(c, int(k)) for c, p in enumerate(probes)
-            for k in np.flatnonzero((moved != base) & (moved == p))]
-
-
 # --- shapes -----------------------------------------------------------------------------------
 
 #: ``label``, a field of every shape and light: what error messages call it (a scene file's
@@ -800,5 +785,7 @@ def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):
         h, w, nc = img.shape
         texmeta.append((sum(t.size for t in tex), w, h, nc))
         tex.append(img.ravel())
-        for ch, slot in _lobe_slots(lobe, decl, 3):
-            bind.append((i, compiled.offsets[l] + slot, len(texmeta) - 1, ch))
+        # a channel's texel value goes to every position of that channel's entry (all of a
+        # scalar parameter's), those of a parameter falling back to it included
+        for ch, positions in enumerate(compiled.slots[l][decl.name]):
+            bind.extend((i, int(k), len(texmeta) - 1, ch) for k in positions)
