@@ -34,7 +34,7 @@ LOOKUP_TARGET_S = 0.2
 
 
 def grid_coordinates(wi, wo):
-    """Continuous grid coordinates ``(u, v, w)`` (DESIGN.md section 6) of direction pairs, from
+    """Continuous grid coordinates ``(u, v, w)`` (docs/conventions.md §6) of direction pairs, from
     :func:`brdf.geometry.half_diff_from_directions`: u = sqrt(theta_h / (pi/2)) 90,
     v = theta_d / (pi/2) 90, w = (phi_d mod pi) / pi 180."""
     theta_h, _, theta_d, phi_d = half_diff_from_directions(wi, wo)

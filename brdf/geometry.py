@@ -1,7 +1,7 @@
 """Directions, frames and angle parametrisations.
 
-Conventions (DESIGN.md section 1): local shading frame with z the normal, x the tangent and y the
-bitangent; unit directions in arrays shaped ``(..., 3)`` pointing away from the surface; polar
+Conventions (docs/conventions.md §1): local shading frame with z the normal, x the tangent and
+y the bitangent; unit directions in arrays shaped ``(..., 3)`` pointing away from the surface; polar
 angle ``theta`` from +z, azimuth ``phi`` from +x towards +y; radians throughout, degrees only
 through :func:`directions_from_degrees` and :func:`degrees_from_directions` at the I/O edge.
 """

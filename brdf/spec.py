@@ -1,4 +1,4 @@
-"""The model spec language (DESIGN.md section 2).
+"""The model spec language (docs/conventions.md §2).
 
 ::
 

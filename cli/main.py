@@ -1,4 +1,4 @@
-"""``brdf-fit``: argument parsing, dispatch and error reporting (DESIGN.md section 4).
+"""``brdf-fit``: argument parsing, dispatch and error reporting (docs/conventions.md §4).
 
 Exit status: 0 success, 1 the work ran but a check failed, 2 usage error or bad input, 3 an
 internal error (a bug), 128 + N when ended by signal N (130 SIGINT, 143 SIGTERM, 129 SIGHUP):

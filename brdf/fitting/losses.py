@@ -129,7 +129,7 @@ def merl_solid_angles():
     (d(wo) = 4 (wi.h) d(h) for a fixed wi, Walter et al. 2007 eq. 14; wi -> d, wi seen from the
     half vector's frame, is a rotation for each h, Rusinkiewicz 1998). A node stands for the
     index cell [i - 1/2, i + 1/2] on each axis, clipped to the grid, with theta_h =
-    (u / 90)^2 pi/2 (DESIGN.md section 6); isotropy gives phi_h its full 2 pi, and reciprocity
+    (u / 90)^2 pi/2 (docs/conventions.md §6); isotropy gives phi_h its full 2 pi, and reciprocity
     lets the node stand for phi_d + pi too. The integrals over each cell are exact, so the
     weights of all 1,458,000 nodes sum to 8 pi^2, the measure of every (wi, wo) with theta_h and
     theta_d below 90 degrees (half of them have wi or wo below the horizon).

@@ -1,4 +1,4 @@
-"""Gonioreflectometer CSV, the project's plain-text table (DESIGN.md section 5).
+"""Gonioreflectometer CSV, the project's plain-text table (docs/conventions.md §5).
 
 A file looks like this::
 

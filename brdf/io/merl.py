@@ -1,6 +1,6 @@
 """MERL binary BRDF tables (Matusik et al. 2003, "A Data-Driven Reflectance Model").
 
-Layout (DESIGN.md section 6): three little-endian int32 dimensions ``(90, 90, 180)``, then
+Layout (docs/conventions.md §6): three little-endian int32 dimensions ``(90, 90, 180)``, then
 ``3 x 1,458,000`` little-endian float64 in channel-major order R, G, B; sample
 ``i_phi_d + 180 i_theta_d + 16200 i_theta_h`` of a channel times the channel's scale
 ``(1/1500, 1.15/1500, 1.66/1500)`` is the BRDF in 1/sr; negative stored values mark missing
@@ -33,11 +33,11 @@ EXTENSIONS = (".binary",)
 #: write() takes a model too and resamples it at the grid nodes
 WRITES_MODELS = True
 
-#: Grid resolution (theta_h, theta_d, phi_d), DESIGN.md section 6.
+#: Grid resolution (theta_h, theta_d, phi_d), docs/conventions.md §6.
 SHAPE = (90, 90, 180)
 #: Samples per channel.
 SIZE = SHAPE[0] * SHAPE[1] * SHAPE[2]
-#: Stored value x scale = BRDF in 1/sr, per channel R, G, B (DESIGN.md section 6).
+#: Stored value x scale = BRDF in 1/sr, per channel R, G, B (docs/conventions.md §6).
 SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 SCALE.setflags(write=False)
 CHANNELS = ("r", "g", "b")
@@ -46,7 +46,7 @@ MISSING = -1.0
 
 _HEADER = np.array(SHAPE, dtype="<i4").tobytes()
 HEADER_BYTES = len(_HEADER)
-FILE_BYTES = HEADER_BYTES + 3 * SIZE * 8  # 34,992,012 (DESIGN.md section 6)
+FILE_BYTES = HEADER_BYTES + 3 * SIZE * 8  # 34,992,012 (docs/conventions.md §6)
 
 _HALF_PI = 0.5 * math.pi
 
@@ -255,7 +255,7 @@ class MerlTable(Table):
         if values.shape[1] != 3:
             raise InputError(f"MERL grid values must be shaped ({SIZE}, 3) (r, g, b), got "
                              f"{values.shape}")
-        raw = values.T / SCALE[:, None]  # stored = BRDF / channel scale (DESIGN.md section 6)
+        raw = values.T / SCALE[:, None]  # stored = BRDF / channel scale (docs/conventions.md §6)
         raw[~(raw >= 0.0)] = MISSING     # NaN and negative values alike
         raw[:, _unmeasurable()] = MISSING
         return cls(raw.reshape((3,) + SHAPE), sigma=sigma, metadata=metadata, source=source,
@@ -292,7 +292,7 @@ class MerlTable(Table):
     @functools.cached_property
     def values(self):
         """BRDF at the nodes in 1/sr, ``(1458000, 3)`` in index order; NaN where missing."""
-        v = self.raw.reshape(3, SIZE).T * SCALE  # DESIGN.md section 6
+        v = self.raw.reshape(3, SIZE).T * SCALE  # docs/conventions.md §6
         v[self.raw.reshape(3, SIZE).T < 0.0] = np.nan
         v = np.ascontiguousarray(v)
         v.setflags(write=False)
@@ -385,7 +385,7 @@ def grid_coordinates(ix, iy, iz, ox, oy, oz):
     Rusinkiewicz 1998, section 3 (as :func:`brdf.geometry.half_diff_from_directions`): the half
     vector gives theta_h; wi rotated by -phi_h about z and -theta_h about y gives the difference
     vector. Then u = sqrt(theta_h / (pi/2)) 90, v = theta_d / (pi/2) 90 and w = phi_d / pi 180
-    with phi_d folded into [0, pi) (DESIGN.md section 6). The pair is put in a fixed order
+    with phi_d folded into [0, pi) (docs/conventions.md §6). The pair is put in a fixed order
     first, so that swapping ``wi`` and ``wo`` gives the same coordinates to the last bit.
     """
     if ix > ox or (ix == ox and (iy > oy or (iy == oy and iz > oz))):

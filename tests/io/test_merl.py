@@ -1,4 +1,4 @@
-"""MERL binary tables (DESIGN.md section 6): file format, index and scale, lookup, bad input.
+"""MERL binary tables (docs/conventions.md §6): file format, index and scale, lookup, bad input.
 
 Directions in the oracles are built by hand from Rusinkiewicz angles (:func:`pair_from_angles`),
 so the expected grid coordinates are known exactly without the forward transform under test.
@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 from bench_merl import numpy_trilinear  # noqa: E402  (the plain-numpy reference lookup)
 
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)"
-SCALE = (1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0)  # DESIGN.md section 6
+SCALE = (1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0)  # docs/conventions.md §6
 FILE_BYTES = 34_992_012
 N = 1_458_000
 
@@ -53,7 +53,7 @@ def pair_from_angles(theta_h, theta_d, phi_d, phi_h=0.0):
 
 def angles_at(u, v, w):
     """Rusinkiewicz angles of continuous grid coordinates: theta_h = (u/90)^2 pi/2,
-    theta_d = v (pi/2)/90, phi_d = w pi/180 (DESIGN.md section 6)."""
+    theta_d = v (pi/2)/90, phi_d = w pi/180 (docs/conventions.md §6)."""
     return (np.asarray(u) / 90.0) ** 2 * math.pi / 2, np.asarray(v) * math.pi / 180.0, \
         np.asarray(w) * math.pi / 180.0
 
@@ -172,7 +172,7 @@ def marked():
 
 def test_values_follow_the_documented_index(marked):
     for n, (i, j, k) in enumerate(NODES):
-        row = k + 180 * j + 16200 * i  # DESIGN.md section 6
+        row = k + 180 * j + 16200 * i  # docs/conventions.md §6
         expected = [(3.0 + 2 * n) / 1500, (4.0 + 2 * n) * 1.15 / 1500, (5.0 + 2 * n) * 1.66 / 1500]
         np.testing.assert_allclose(marked.values[row], expected, rtol=1e-15)
 
