@@ -54,8 +54,8 @@ def _start_compiling():
     cached it is compiled here as well, and the demo renders once the process is done: either
     way the results are the same."""
     import multiprocessing
-    from .precompile import _run
-    worker = multiprocessing.get_context("spawn").Process(target=_run,
+    from .precompile import compile_groups
+    worker = multiprocessing.get_context("spawn").Process(target=compile_groups,
                                                           args=(["fitting", "render"],),
                                                           daemon=True)
     worker.start()

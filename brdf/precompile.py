@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-__all__ = ["GROUPS", "precompile", "main"]
+__all__ = ["GROUPS", "precompile", "compile_groups", "main"]
 
 _SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
 
@@ -46,7 +46,7 @@ def _fitting():
     problem = Problem(table, "lambert + ggx(alpha=0.5)")
     problem.loss_and_gradient(problem.x0)
     problem.channel_losses(np.stack([problem.x0, problem.x0]))
-    problem._score(np.zeros_like(table.values), problem.terms)
+    problem.score(np.zeros_like(table.values), problem.terms)
 
 
 def _tables():
@@ -73,7 +73,7 @@ def _render():
 GROUPS = {"models": _models, "fitting": _fitting, "tables": _tables, "render": _render}
 
 
-def _run(names):
+def compile_groups(names):
     """Run the groups ``names`` in this process; seconds each took."""
     out = {}
     for name in names:
@@ -110,7 +110,7 @@ def precompile(groups=tuple(GROUPS), processes=2):
     batches = [list(groups[i:i + share]) for i in range(0, len(groups), share)]
     seconds = {}
     with ProcessPoolExecutor(len(batches), mp_context=multiprocessing.get_context("spawn")) as pool:
-        for done in pool.map(_run, batches):
+        for done in pool.map(compile_groups, batches):
             seconds.update(done)
     return seconds
 

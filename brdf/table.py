@@ -27,7 +27,7 @@ from .geometry import (broadcast_shape, degrees_from_directions, direction_array
                        directions_from_degrees, flat_pairs, real_array, uniform_array)
 
 __all__ = ["Table", "AngleTable", "ScatteredInterpolant", "regular_grid", "half_vector_rule",
-           "channel_names_for"]
+           "channel_names_for", "sample_values"]
 
 #: Directions may dip this far below the horizon (z) and still count as measured: angles stored
 #: in degrees with a few digits put theta = 90 at z ~ 1e-17 either side.
@@ -95,11 +95,11 @@ class Table:
                              f"{self._wo.shape}")
         if not len(self._wi):
             raise InputError("wi: a table needs at least one sample, got shape (0, 3)")
-        self._values = _sample_values(values, "values", len(self._wi))
+        self._values = sample_values(values, "values", len(self._wi))
         if np.isnan(self._values).all():
             raise InputError(f"values: all {self._values.size} are NaN (missing); a table "
                              "needs at least one measured value")
-        self._sigma = None if sigma is None else _sample_values(sigma, "sigma", len(self._wi))
+        self._sigma = None if sigma is None else sample_values(sigma, "sigma", len(self._wi))
         if self._sigma is not None:
             if self._sigma.shape != self._values.shape:
                 raise InputError(f"sigma must be shaped like values {self._values.shape}, got "
@@ -580,7 +580,9 @@ def _sample_directions(x, name):
     return arr
 
 
-def _sample_values(x, name, n):
+def sample_values(x, name, n):
+    """``x`` as float64 ``(n, C)`` values of ``n`` samples (a 1-D array is one channel): NaN
+    marks a missing sample, infinities are refused (InputError naming ``name``)."""
     arr = real_array(x, name)
     if arr.ndim == 1:
         arr = arr[:, None]

@@ -247,7 +247,7 @@ def _assignments(items):
     return out
 
 
-def _refuse_existing(args, *paths):
+def refuse_existing(args, *paths):
     """OutputError before any work if an output file exists and --force is not given."""
     from pathlib import Path
     from brdf.errors import OutputError
@@ -271,7 +271,7 @@ def fit(args, out):
     from .arguments import chain_options
     from .export import export_path, report as export_report
     target = export_path(args)
-    _refuse_existing(args, args.output, args.chain, args.corner, target)
+    refuse_existing(args, args.output, args.chain, args.corner, target)
     if target:  # a model without an equivalent is refused before the fit, not after
         from brdf.fitting.export import check_families
         check_families(args.spec, args.export)
@@ -311,7 +311,7 @@ def compare(args, out):
     """Fit several specs to one table and print them ranked; exit 1 if a fit did not
     converge."""
     import brdf
-    _refuse_existing(args, args.output)
+    refuse_existing(args, args.output)
     result = brdf.compare(read_table(args.data), args.specs, by=args.by, loss=args.loss,
                           optimizer=args.optimizer, starts=args.starts,
                           energy_constraint=args.energy_constraint, cutoff=args.cutoff,

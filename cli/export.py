@@ -54,8 +54,8 @@ def export_path(args):
 def run(args, out):
     """Convert and write; exit 1 when the conversion is approximate."""
     import brdf
-    from .commands import EXIT_CHECK_FAILED, EXIT_OK, load_subject, _refuse_existing
-    _refuse_existing(args, args.output)
+    from .commands import EXIT_CHECK_FAILED, EXIT_OK, load_subject, refuse_existing
+    refuse_existing(args, args.output)
     model = load_subject(args.subject)
     if not isinstance(model, brdf.models.Model):
         raise brdf.InputError(f"{args.subject}: a measured table; export takes a fit report or "

@@ -1,6 +1,6 @@
 """``brdf-fit render`` and ``brdf-fit validate``: the validation renders of :mod:`brdf.render`."""
 
-from .commands import EXIT_OK, _refuse_existing, load_subject
+from .commands import EXIT_OK, refuse_existing, load_subject
 
 SCENE_HELP = ("a built-in scene (cornell, sphere, furnace, plane-point) or a .json/.toml scene "
               "file whose shapes use \"@material\" (default: sphere)")
@@ -103,7 +103,7 @@ def _progress(out):
 def render(args, out):
     """Render a material; write the image (and preview) atomically."""
     from brdf import render as R
-    _refuse_existing(args, args.output, args.preview)
+    refuse_existing(args, args.output, args.preview)
     png = args.output.lower().endswith(".png")
     result = R.render(_scene(args.scene, load_subject(args.material)), spp=args.spp, size=args.size,
                       seed=args.seed, max_depth=args.max_depth, strategy=args.strategy,

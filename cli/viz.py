@@ -2,7 +2,7 @@
 (:mod:`brdf.viz`). Registered from :mod:`brdf_cli.main` by :func:`add_parsers`."""
 
 from . import arguments
-from .commands import EXIT_OK, _refuse_existing, load_subject, read_table
+from .commands import EXIT_OK, refuse_existing, load_subject, read_table
 
 MATERIAL_HELP = ("a model spec, a JSON fit report (its measured input, when the file is "
                  "still there, is drawn too) or a measured table file")
@@ -153,7 +153,7 @@ def _check_png(args):
     from brdf.errors import InputError
     if args.output is not None and not args.output.lower().endswith(".png"):
         raise InputError(f"{args.output}: the output is a PNG image; name it ....png")
-    _refuse_existing(args, args.output)
+    refuse_existing(args, args.output)
 
 
 def _subject(text, sample=None):

@@ -270,10 +270,10 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
     from ..io import atomic_output
     from ..spec import parse
     from . import losses
-    from .nlopt_fit import _validate, DEFAULT_TOL
+    from .nlopt_fit import DEFAULT_TOL, check_options
     spec = str(parse(spec))
     losses.check_loss(loss)
-    starts = _validate(optimizer, starts, seed, max_evals, DEFAULT_TOL)
+    starts = check_options(optimizer, starts, seed, max_evals, DEFAULT_TOL)
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
     paths = _inputs(inputs)

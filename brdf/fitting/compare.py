@@ -92,13 +92,14 @@ def compare(data, specs, *, by="aic", **fit_options):
     -------
     Comparison
     """
-    from .nlopt_fit import _load, fit
+    from ..io import as_table
+    from .nlopt_fit import fit
     if by not in CRITERIA:
         raise InputError(f"unknown criterion {by!r}; criteria: {', '.join(CRITERIA)}")
     specs = list(specs)
     if len(specs) < 2:
         raise InputError(f"compare needs at least two specs, got {len(specs)}")
-    table = _load(data)
+    table = as_table(data)
     per_spec = _options_per_spec(specs, fit_options)
     results, refitted = [], []
     for spec, options in zip(specs, per_spec):

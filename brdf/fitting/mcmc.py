@@ -443,7 +443,7 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     Posterior
     """
     import emcee
-    from .nlopt_fit import _load
+    from ..io import as_table
     began = time.perf_counter()
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) \
             or max_steps < FIRST_CHECK:
@@ -451,7 +451,7 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     state, rng = _seed_state(seed)
     proposals, described = _moves(moves)
     backend, tmp = _chain_backend(chain, force)
-    table = _load(data)
+    table = as_table(data)
     result, problem, x_opt = _start_fit(table, start, seed, fit_options)
     logpost = LogPosterior(problem, x_opt)
     nwalkers = _walkers(walkers, logpost.dim)

@@ -77,7 +77,7 @@ class MixedProblem(Problem):
         return np.broadcast_to(f, s.values.shape)
 
     @staticmethod
-    def _score(f, terms):
+    def score(f, terms):
         """Per-channel loss ``(C,)`` of model values ``f`` under ``terms``."""
         return losses.channel_values(terms, f)
 
@@ -85,7 +85,7 @@ class MixedProblem(Problem):
         """Per-channel contributions ``(K, C)`` to the loss of each row of ``X``."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         t = terms or self.terms
-        return np.array([self._score(self.model_values(x), t) for x in X])
+        return np.array([self.score(self.model_values(x), t) for x in X])
 
     def loss_and_gradient(self, x, terms=None):
         """``(loss, gradient)`` at ``x``; the gradient by central differences."""

@@ -23,8 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
+from ..io import as_table
 from . import losses
 from .mixed_problem import problem_for
 from .report import SCHEMA
@@ -501,13 +503,6 @@ def _progress_bar(total, enabled):
     return tqdm(total=total, desc="fit", unit="eval", file=sys.stderr, leave=False)
 
 
-def _load(data):
-    if isinstance(data, (str, os.PathLike)):
-        from ..io import read
-        return read(data)
-    return data
-
-
 def _versions():
     from importlib.metadata import version
     import nlopt
@@ -517,24 +512,21 @@ def _versions():
             "nlopt": nlopt.__version__, "numba": numba.__version__}
 
 
-def _validate(optimizer, starts, seed, max_evals, tol):
+def check_options(optimizer, starts, seed, max_evals, tol):
     """The number of starts (None: :data:`DEFAULT_STARTS`, or 1 for a global optimizer);
-    raises InputError naming the first bad option."""
+    raises InputError naming the first bad option (as :func:`fit` takes them)."""
     _, kind = _optimizer(optimizer)
     if starts is None:
         starts = 1 if kind == "global" else DEFAULT_STARTS
-    if isinstance(starts, bool) or not isinstance(starts, (int, np.integer)) or starts < 1:
-        raise InputError(f"starts must be an integer >= 1, got {starts!r}")
+    starts = arguments.integer(starts, "starts", 1)
     if kind == "global" and starts > 1:
         raise InputError(f"starts is for local optimizers; {optimizer} searches the whole box")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0, got {seed!r}")
-    if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) \
-            or max_evals < 1:
-        raise InputError(f"max_evals must be an integer >= 1, got {max_evals!r}")
-    if not (isinstance(tol, (int, float)) and 0.0 < tol < 1.0):
+    arguments.integer(seed, "seed", 0)  # an int: the report records it
+    arguments.integer(max_evals, "max_evals", 1)
+    arguments.real(tol, "tol", 0.0, 1.0, low_open=True)
+    if tol >= 1.0:
         raise InputError(f"tol must be a number in (0, 1), got {tol!r}")
-    return int(starts)
+    return starts
 
 
 def _energy_summary(report, angles):
@@ -606,8 +598,8 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
     """
     from ..properties import check
     start = time.perf_counter()
-    starts = _validate(optimizer, starts, seed, max_evals, tol)
-    table = _load(data)
+    starts = check_options(optimizer, starts, seed, max_evals, tol)
+    table = as_table(data)
     problem = problem_for(table, spec, loss=loss, cutoff=cutoff, shared=shared, fix=fix,
                           bounds=bounds)
     if not problem.free:

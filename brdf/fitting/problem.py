@@ -494,7 +494,7 @@ class Problem:
         for name in names:
             t = self.terms if name == self.loss_name else losses.terms(name, self.samples,
                                                                        len(self.free))
-            out[name] = float(self._score(f, t).sum())
+            out[name] = float(self.score(f, t).sum())
         return out
 
     def model_values(self, x):
@@ -506,7 +506,7 @@ class Problem:
         return f
 
     @staticmethod
-    def _score(f, terms):
+    def score(f, terms):
         """Per-channel loss ``(C,)`` of model values ``f`` under ``terms``."""
         sums = np.zeros((-(-len(f) // BLOCK), f.shape[1]))
         _score_sums(f, terms.scale, terms.target, terms.weight, terms.offset, BLOCK, sums)

@@ -24,7 +24,7 @@ from ..errors import FormatError, InputError
 from .files import atomic_output, read_bytes, read_head
 
 __all__ = ["read", "write", "formats", "format_of", "Source", "source_of", "read_bytes",
-           "atomic_output"]
+           "atomic_output", "as_table"]
 
 #: Format modules, in the order content sniffing tries them.
 _MODULES = ("merl", "nist_ptfe", "cornell", "curet", "gonio_csv", "npz", "rgl_bsdf")
@@ -121,6 +121,13 @@ def read(path, format=None, **options):
         if path in str(e):
             raise
         raise InputError(f"{path}: {e}") from e
+
+
+def as_table(data):
+    """``data`` itself, or the table read from it when it is a path (``str`` or path-like)."""
+    if isinstance(data, (str, os.PathLike)):
+        return read(data)
+    return data
 
 
 def _path_argument(path, what):

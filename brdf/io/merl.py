@@ -22,7 +22,7 @@ from numba import prange
 from .._jit import kernel, parallel_kernel
 from ..errors import FormatError, InputError
 from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
-from ..table import HORIZON_SLACK, Table, _sample_values
+from ..table import HORIZON_SLACK, Table, sample_values
 from . import read_bytes, source_of
 
 __all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "write", "MerlTable", "check_rgb",
@@ -228,7 +228,7 @@ class MerlTable(Table):
             raw = raw.copy()
             raw.setflags(write=False)
         self.raw = raw
-        self._sigma = None if sigma is None else _sample_values(sigma, "sigma", SIZE)
+        self._sigma = None if sigma is None else sample_values(sigma, "sigma", SIZE)
         if self._sigma is not None and self._sigma.shape != (SIZE, 3):
             raise InputError(f"sigma must be shaped ({SIZE}, 3), got {self._sigma.shape}")
         info = {"units": "1/sr", "grid": list(SHAPE), "channel_scale": SCALE.tolist()}
@@ -251,7 +251,7 @@ class MerlTable(Table):
         sigma, metadata, source, name
             As for :class:`MerlTable`.
         """
-        values = _sample_values(values, "values", SIZE)
+        values = sample_values(values, "values", SIZE)
         if values.shape[1] != 3:
             raise InputError(f"MERL grid values must be shaped ({SIZE}, 3) (r, g, b), got "
                              f"{values.shape}")
