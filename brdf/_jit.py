@@ -10,6 +10,10 @@ numba keys a cached kernel on its own source file only, but our kernels inline f
 other modules of the package (a model's formula into the dispatcher), so an edit to one file
 could leave stale machine code behind. The cache locators below stamp every kernel of this
 package with a fingerprint of the source of all its kernel modules instead.
+
+These locators, the typing hooks below and ``_nrt=False`` reach into numba internals, so
+``pyproject.toml`` pins numba to the minor release ``tests/test_jit.py`` has passed on; widen
+the pin only after that test passes on the new one.
 """
 
 import hashlib
