@@ -29,12 +29,51 @@ def test_checksums_and_size():
     assert total < 10 * 2**20
 
 
-@pytest.mark.parametrize("name", sorted(n for n in listed() if not n.startswith("fits/")))
-def test_every_table_reads_and_checks(name):
-    table = brdf.read(FOLDER / name)
+#: The verdicts (non-negativity, reciprocity, energy) each bundled table must get; None is
+#: "not testable". Two RGL paints hold negative values (2.6 % and 4.8 % of them, down to
+#: -0.44 1/sr: RGB from spectra) and swapped pairs 20 % apart at the 95th percentile; a
+#: random scan has no swapped pairs and an in-plane scan no albedo.
+VERDICTS = {
+    "rgl/cc_ibiza_sunset_rgb.bsdf": (False, False, True),
+    "rgl/colodur_napoli_4f_rgb.bsdf": (True, True, True),
+    "rgl/paper_white_rgb.bsdf": (True, True, True),
+    "rgl/vch_golden_yellow_rgb.bsdf": (False, False, True),
+    "synthetic/brushed_metal_random.csv": (True, None, True),
+    "synthetic/matte_paint_inplane.csv": (True, True, None),
+    "synthetic/plastic_grid.csv": (True, True, True),
+}
+#: Known wrong verdicts. The brushed metal's model (GGX, ks 0.95, alpha 0.1 x 0.35) has albedo
+#: at most 0.85, but the table's 9,000 random samples interpolate its sharp lobe so coarsely that
+#: the integral reaches 2.06 at 85.5 degrees (and is 20 % high at 30): the energy check should
+#: call that not testable rather than fail it.
+WRONG = {("synthetic/brushed_metal_random.csv", "energy")}
+
+
+def test_every_bundled_table_has_a_verdict():
+    assert sorted(VERDICTS) == sorted(n for n in listed() if not n.startswith("fits/"))
+
+
+@pytest.mark.parametrize("name, check", [
+    pytest.param(name, check, marks=[pytest.mark.xfail(strict=True, reason="see WRONG")]
+                 if (name, check) in WRONG else [])
+    for name in sorted(VERDICTS) for check in ("non-negativity", "reciprocity", "energy")])
+def test_every_table_reads_and_gets_its_verdict(name, check, checked):
+    table, report = checked(name)
     assert len(table) > 1000
-    report = brdf.check(table, theta_steps=12, anisotropic_steps=(6, 4))
-    assert report["non-negativity"].passed is not None
+    expected = VERDICTS[name][("non-negativity", "reciprocity", "energy").index(check)]
+    assert report[check].passed is expected, report[check].detail
+
+
+@pytest.fixture(scope="module")
+def checked():
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            table = brdf.read(FOLDER / name)
+            cache[name] = table, brdf.check(table, theta_steps=12, anisotropic_steps=(6, 4))
+        return cache[name]
+    return get
 
 
 def _make_synthetic():
