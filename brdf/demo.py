@@ -104,7 +104,7 @@ def _prepare(outdir, force):
 
 def _write_json(path, doc):
     from .io import atomic_output
-    from .properties import json_ready
+    from .formatting import json_ready
     with atomic_output(path, force=True) as tmp:
         tmp.write_text(json.dumps(json_ready(doc), indent=2, allow_nan=False) + "\n",
                        encoding="utf-8")

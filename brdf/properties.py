@@ -22,10 +22,11 @@ import numpy as np
 
 from . import arguments
 from .errors import InputError
+from .formatting import format_table, json_ready
 from .geometry import spherical_to_cartesian
 
 __all__ = ["check", "CheckReport", "CheckResult", "direction_pairs", "incidence_grid",
-           "format_table", "json_ready", "RECIPROCITY_TOL", "RECIPROCITY_FLOOR", "ENERGY_TOL",
+           "RECIPROCITY_TOL", "RECIPROCITY_FLOOR", "ENERGY_TOL",
            "VERDICT_TOL"]
 
 #: Largest accepted relative difference |f(wi,wo) - f(wo,wi)| / max(|f|, floor). Reciprocal
@@ -192,45 +193,11 @@ class CheckReport:
         return "\n".join(lines)
 
 
-def format_table(header, rows, align=None):
-    """Plain-text table, columns padded to their widest cell.
-
-    Parameters
-    ----------
-    header : sequence of str
-    rows : sequence of sequences of str
-    align : str, optional
-        One letter per column, ``"l"`` or ``"r"`` (default: all left).
-    """
-    align = align or "l" * len(header)
-    cells = [list(map(str, header))] + [list(map(str, r)) for r in rows]
-    widths = [max(len(r[j]) for r in cells) for j in range(len(header))]
-    pad = [str.rjust if a == "r" else str.ljust for a in align]
-    return "\n".join("  ".join(pad[j](r[j], widths[j]) for j in range(len(r))).rstrip()
-                     for r in cells)
-
-
 def _where_text(where):
     parts = [f"{k}={where[k]:g}" for k in ANGLES if where.get(k) is not None]
     if where.get("channel") is not None:
         parts.append(f"channel={where['channel']}")
     return " ".join(parts)
-
-
-def json_ready(x):
-    """Plain JSON types from nested dicts, sequences and numpy values; non-finite numbers (NaN,
-    an unbounded parameter's inf) become ``None`` so that strict JSON parsers accept the output."""
-    if isinstance(x, dict):
-        return {k: json_ready(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple, np.ndarray)):
-        return [json_ready(v) for v in x]
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        return float(x) if math.isfinite(x) else None
-    return x
 
 
 # --- where to look ---------------------------------------------------------------------------

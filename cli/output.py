@@ -23,10 +23,10 @@ class Output:
             print(text, file=self.stream)
 
     def table(self, header, rows, align=None, indent=""):
-        from brdf.properties import format_table
+        from brdf.formatting import format_table
         lines = format_table(header, rows, align).splitlines()
         self.text("\n".join(indent + line for line in lines))
 
     def json(self, data):
-        from brdf.properties import json_ready
+        from brdf.formatting import json_ready
         print(json.dumps(json_ready(data), indent=2, allow_nan=False), file=self.stream)

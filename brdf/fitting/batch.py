@@ -62,7 +62,7 @@ class BatchResult:
                 "files": list(self.rows)}
 
     def __str__(self):
-        from ..properties import format_table
+        from ..formatting import format_table
         body = [(Path(r["file"]).name, r["status"],
                  "" if r["loss"] is None else f"{r['loss']:.6g}",
                  "" if r["energy_holds"] is None else ("yes" if r["energy_holds"] else "NO"),

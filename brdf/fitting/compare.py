@@ -47,7 +47,7 @@ class Comparison:
         return {"schema": "brdf.compare/1", "by": self.by, "models": list(self.rows)}
 
     def __str__(self):
-        from ..properties import format_table
+        from ..formatting import format_table
         body = [(str(i + 1), r["spec"], str(r["k"]), f"{r['loss']:.6g}", f"{r['aic']:.2f}",
                  f"{r['bic']:.2f}", f"{r['delta']:.2f}", f"{r['weight']:.3f}",
                  "yes" if r["converged"] else "NO", "pass" if r["checks_pass"] else "FAIL",

@@ -226,7 +226,7 @@ class Posterior:
         }
 
     def __str__(self):
-        from ..properties import format_table
+        from ..formatting import format_table
         rows = [(n, f"{self.optimum.get(n, float('nan')):.6g}",
                  *(f"{self.percentiles[n][k]:.6g}" for k in ("50", "16", "84", "2.5", "97.5")),
                  f"{t:.1f}") for n, t in zip(self.names, self.tau)]

@@ -173,7 +173,7 @@ class FitResult:
 
     def to_dict(self):
         """JSON-ready report; ``timing`` is its last key (drop it to compare runs)."""
-        from ..properties import json_ready
+        from ..formatting import json_ready
         return json_ready({
             "schema": SCHEMA, "spec": self.spec, "model": self.model.to_dict(),
             "params": self.params, "free": list(self.free), "fixed": self.fixed,
@@ -184,7 +184,7 @@ class FitResult:
             "warnings": list(self.warnings), "verdict": self.verdict, "timing": self.timing})
 
     def __str__(self):
-        from ..properties import format_table
+        from ..formatting import format_table
         d = self.data
         verdict = "converged" if self.converged else "NOT converged"
         rows = [(name, f"{value:.8g}", *(f"{b:g}" for b in self.bounds[name]), "free")

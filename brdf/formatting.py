@@ -1,0 +1,42 @@
+"""Plain-text tables and JSON-ready values: how reports print, whoever makes them (checks,
+fits, comparisons, posteriors, batches, the command line)."""
+
+import math
+
+import numpy as np
+
+__all__ = ["format_table", "json_ready"]
+
+
+def format_table(header, rows, align=None):
+    """Plain-text table, columns padded to their widest cell.
+
+    Parameters
+    ----------
+    header : sequence of str
+    rows : sequence of sequences of str
+    align : str, optional
+        One letter per column, ``"l"`` or ``"r"`` (default: all left).
+    """
+    align = align or "l" * len(header)
+    cells = [list(map(str, header))] + [list(map(str, r)) for r in rows]
+    widths = [max(len(r[j]) for r in cells) for j in range(len(header))]
+    pad = [str.rjust if a == "r" else str.ljust for a in align]
+    return "\n".join("  ".join(pad[j](r[j], widths[j]) for j in range(len(r))).rstrip()
+                     for r in cells)
+
+
+def json_ready(x):
+    """Plain JSON types from nested dicts, sequences and numpy values; non-finite numbers (NaN,
+    an unbounded parameter's inf) become ``None`` so that strict JSON parsers accept the output."""
+    if isinstance(x, dict):
+        return {k: json_ready(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple, np.ndarray)):
+        return [json_ready(v) for v in x]
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if math.isfinite(x) else None
+    return x
