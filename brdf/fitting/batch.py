@@ -18,11 +18,11 @@ import glob as globbing
 import hashlib
 import json
 import os
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BRDFError, InputError
+from ..progress import bar as progress_bar
 
 __all__ = ["batch", "BatchResult", "STATUSES"]
 
@@ -214,15 +214,6 @@ def _submit(todo, spec, options, jobs, scheduler):
                 yield futures[future], future.result()
 
 
-def _progress(total, enabled):
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    if not enabled:
-        return None
-    from tqdm import tqdm
-    return tqdm(total=total, desc="batch", unit="file", file=sys.stderr, leave=False)
-
-
 def _write_summary(result, outdir):
     import csv
     import io
@@ -294,7 +285,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
                             "another input, spec or options; pass --force to refit"))
         else:
             todo.append(p)
-    bar = _progress(len(todo), progress)
+    bar = progress_bar(len(todo), "batch", "file", progress)
     try:
         for p, (report, error) in _submit(todo, spec, options, jobs or os.cpu_count() or 1,
                                           scheduler):

@@ -26,7 +26,6 @@ until ``max_steps``. Burn-in is twice the largest tau and thinning half the smal
 """
 
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 
@@ -35,6 +34,7 @@ import numpy as np
 from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
+from ..progress import bar as progress_bar
 
 __all__ = ["mcmc", "Posterior", "LogPosterior", "NOISE", "TAU_MULTIPLE", "PERCENTILES", "MOVES"]
 
@@ -388,15 +388,6 @@ def _run(sampler, p0, max_steps, bar):
                                f"{TAU_MULTIPLE} x needed with tau settled; raise max_steps")
 
 
-def _progress(total, enabled):
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    if not enabled:
-        return None
-    from tqdm import tqdm
-    return tqdm(total=total, desc="mcmc", unit="step", file=sys.stderr, leave=False)
-
-
 def _start_fit(data, start, seed, fit_options):
     """The FitResult the walkers start from, and the problem it was fitted on."""
     from .nlopt_fit import FitResult, fit
@@ -464,7 +455,7 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     sampler = emcee.EnsembleSampler(nwalkers, logpost.dim, logpost, vectorize=True,
                                     backend=backend, moves=proposals)
     sampler.random_state = state.get_state()
-    bar = _progress(max_steps, progress)
+    bar = progress_bar(max_steps, "mcmc", "step", progress)
     try:
         steps, tau, converged, verdict = _run(sampler, logpost.start(x_opt, nwalkers, rng),
                                               int(max_steps), bar)

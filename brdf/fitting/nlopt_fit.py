@@ -17,7 +17,6 @@ byte, for the same inputs and seed.
 
 import math
 import os
-import sys
 import time
 from dataclasses import dataclass
 
@@ -26,6 +25,7 @@ import numpy as np
 from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
+from ..progress import bar as progress_bar
 from ..io import as_table
 from . import losses
 from .mixed_problem import problem_for
@@ -494,15 +494,6 @@ def _refine_energy(problem, optimizer, x, angles, report, records, options):
     return x, report, angles
 
 
-def _progress_bar(total, enabled):
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    if not enabled:
-        return None
-    from tqdm import tqdm
-    return tqdm(total=total, desc="fit", unit="eval", file=sys.stderr, leave=False)
-
-
 def _versions():
     from importlib.metadata import version
     import nlopt
@@ -607,7 +598,7 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
     prepared = time.perf_counter()
     angles = energy_angles(problem.base) if energy_constraint else None
     runs = 2 if OPTIMIZERS[optimizer][1] == "global" else starts + MODE_POLISHES
-    bar = _progress_bar(runs * max_evals, progress)
+    bar = progress_bar(runs * max_evals, "fit", "eval", progress)
     options = {"max_evals": max_evals, "tol": tol, "seed": seed, "progress": bar}
     try:
         x, records, ends = _runs(problem, optimizer, starts, angles, options)

@@ -14,7 +14,6 @@ the sample index, so the same seed gives the same bytes whatever the number of t
 
 import math
 import numbers
-import sys
 import time
 from dataclasses import dataclass
 from typing import Optional
@@ -24,6 +23,7 @@ import numpy as np
 from .. import arguments
 from ..arguments import integer, shown
 from ..errors import InputError
+from ..progress import bar as progress_bar
 from ..memory import require
 from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Material, Mesh,
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
@@ -209,7 +209,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         render_pass(*args, probe, seed, 0, 1, np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
                     np.zeros((1, 1, 6)))
         compile_seconds = time.perf_counter() - t0
-        bar = _progress(int(spp), progress)
+        bar = progress_bar(int(spp), "render", "spp", progress)
         t0 = time.perf_counter()
         # fewer, longer passes spend less on each tile's last bounces, when its packet runs
         # part-empty (2^20 paths a pass: 4-7 % slower at 256 x 256 x 64). The passes never
@@ -232,12 +232,3 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     var = np.maximum(acc2 / n - mean * mean, 0.0) / max(n - 1.0, 1.0)
     return RenderResult(mean, var, aov[..., :3] / n, aov[..., 3:] / n, int(spp), seed, seconds,
                         compile_seconds)
-
-
-def _progress(total, enabled):
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    if not enabled:
-        return None
-    from tqdm import tqdm
-    return tqdm(total=total, unit="spp", desc="render", leave=False)
