@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["integer", "real", "seed", "rng", "names", "mapping", "shown"]
+__all__ = ["integer", "is_integer", "real", "seed", "rng", "names", "mapping", "shown"]
 
 _REPR = reprlib.Repr()
 _REPR.maxstring = _REPR.maxother = 60
@@ -28,14 +28,15 @@ def shown(value):
     return _REPR.repr(value)
 
 
-def _is_integer(value):
+def is_integer(value):
+    """True for an integer (Python or numpy), not a bool."""
     return isinstance(value, numbers.Integral) and not isinstance(value, (bool, np.bool_))
 
 
 def integer(value, name, low, high=None):
     """``value`` as an ``int`` if it is an integer (not a bool, not a float) in
     ``[low, high]``; otherwise InputError naming ``name``."""
-    if not _is_integer(value) or value < low or (high is not None and value > high):
+    if not is_integer(value) or value < low or (high is not None and value > high):
         span = f">= {low}" if high is None else f"from {low} to {high:,}"
         raise InputError(f"{name} must be an integer {span}, got {shown(value)}")
     return int(value)
@@ -59,7 +60,7 @@ def real(value, name, low=-math.inf, high=math.inf, *, low_open=False):
 def seed(value, name="seed"):
     """``value`` unchanged if it is an integer >= 0 (not a bool) or a
     :class:`numpy.random.Generator`; otherwise InputError naming ``name``."""
-    if isinstance(value, np.random.Generator) or (_is_integer(value) and value >= 0):
+    if isinstance(value, np.random.Generator) or (is_integer(value) and value >= 0):
         return value
     raise InputError(f"{name} must be an integer >= 0 or a numpy.random.Generator, got "
                      f"{shown(value)}")

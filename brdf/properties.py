@@ -390,8 +390,7 @@ def _require_counts(**options):
         values, lows, highs = (value, low, high) if isinstance(low, tuple) else (
             (value,), (low,), (high,))
         if not (isinstance(values, (tuple, list)) and len(values) == len(lows)
-                and all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
-                        and lo <= v <= hi for v, lo, hi in zip(values, lows, highs))):
+                and all(arguments.is_integer(v) and lo <= v <= hi for v, lo, hi in zip(values, lows, highs))):
             expected = (f"{len(lows)} integers from {lows} to {highs}" if len(lows) > 1
                         else f"an integer from {low} to {high:,}")
             raise InputError(f"check: {name} must be {expected}, got {value!r}")

@@ -21,6 +21,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from .. import arguments
 from ..errors import BRDFError, InputError
 from ..progress import bar as progress_bar
 
@@ -265,8 +266,8 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
     spec = str(parse(spec))
     losses.check_loss(loss)
     starts = check_options(optimizer, starts, seed, max_evals, DEFAULT_TOL)
-    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
-        raise InputError(f"jobs must be an integer >= 1, got {jobs!r}")
+    if jobs is not None:
+        jobs = arguments.integer(jobs, "jobs", 1)
     paths = _inputs(inputs)
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)

@@ -323,8 +323,7 @@ def _moves(moves):
 def _walkers(walkers, dim):
     if walkers is None:
         return max(32, 4 * dim + (4 * dim) % 2)
-    if isinstance(walkers, bool) or not isinstance(walkers, (int, np.integer)) \
-            or walkers < 2 * dim or walkers % 2:
+    if not arguments.is_integer(walkers) or walkers < 2 * dim or walkers % 2:
         raise InputError(f"walkers must be an even integer >= {2 * dim} (twice the {dim} "
                          f"sampled parameters), got {walkers!r}")
     return int(walkers)
@@ -436,9 +435,7 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     import emcee
     from ..io import as_table
     began = time.perf_counter()
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) \
-            or max_steps < FIRST_CHECK:
-        raise InputError(f"max_steps must be an integer >= {FIRST_CHECK}, got {max_steps!r}")
+    max_steps = arguments.integer(max_steps, "max_steps", FIRST_CHECK)
     state, rng = _seed_state(seed)
     proposals, described = _moves(moves)
     backend, tmp = _chain_backend(chain, force)

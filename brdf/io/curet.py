@@ -19,12 +19,12 @@ geometries span all four angles. Negative values (measurement noise, 29 in the p
 table) are kept: the non-negativity check reports them.
 """
 
-import numbers
 from pathlib import Path
 
-from ..errors import FormatError, InputError
+from ..errors import FormatError
 from ..geometry import spherical_to_cartesian
 from ..table import Table
+from .. import arguments
 from . import SNIFF_BYTES, _text, read_bytes, source_of
 from .files import MAX_BYTES
 
@@ -77,10 +77,8 @@ def read(path, sample=1, geometry=None):
         ``sample`` is not one of the file's sample numbers.
     """
     wi, wo, values, common = _load(path, geometry)
-    if (isinstance(sample, bool) or not isinstance(sample, numbers.Integral)
-            or not 1 <= sample <= len(values)):
-        raise InputError(f"sample must be an integer from 1 to {len(values)}, got {sample!r}")
-    return _table(wi, wo, values, common, int(sample))
+    sample = arguments.integer(sample, "sample", 1, len(values))
+    return _table(wi, wo, values, common, sample)
 
 
 def read_all(path, geometry=None):

@@ -13,7 +13,6 @@ the sample index, so the same seed gives the same bytes whatever the number of t
 """
 
 import math
-import numbers
 import time
 from dataclasses import dataclass
 from typing import Optional
@@ -119,7 +118,7 @@ def _options(size, spp, max_depth, rr_depth, strategy, threads):
         raise InputError(f"render: size must be W or (W, H) in pixels, got {shown(size)}")
     w, h = (integer(v, "render: size", 1, MAX_SIZE) for v in sides)
     spp = integer(spp, "render: spp", 1, MAX_SPP)
-    depth = MAX_DEPTH if max_depth is None or (_is_int(max_depth) and max_depth == -1) else \
+    depth = MAX_DEPTH if max_depth is None or (arguments.is_integer(max_depth) and max_depth == -1) else \
         integer(max_depth, "render: max_depth (or -1 for no limit)", 1, MAX_DEPTH)
     rr_depth = integer(rr_depth, "render: rr_depth", 1, MAX_DEPTH)
     if not isinstance(strategy, str) or strategy not in STRATEGIES:
@@ -128,10 +127,6 @@ def _options(size, spp, max_depth, rr_depth, strategy, threads):
     if threads is not None:
         threads = integer(threads, "render: threads", 1)
     return w, h, spp, depth, rr_depth, threads
-
-
-def _is_int(value):
-    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def _seed(seed):
