@@ -73,14 +73,7 @@ def number(low=None, high=None, what="a number", low_open=False, high_open=False
                 else f"{what}")
 
     def convert(text):
-        try:
-            value = parse_float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number; expected "
-                                              f"{expected}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{text.strip()!r} is not finite; expected "
-                                              f"{expected}")
+        value = _finite(text, "", expected)
         if ((low is not None and (value < low or (low_open and value == low)))
                 or (high is not None and (value > high or (high_open and value == high)))):
             raise argparse.ArgumentTypeError(f"{value:g} is out of range; expected {expected}")
@@ -101,21 +94,22 @@ def suffixed(*suffixes, what="a file"):
     return convert
 
 
-def _degrees(text, what, expected):
+def _finite(text, what, expected):
+    """``text`` as a finite float; ArgumentTypeError '<what> <text> is not ...' otherwise."""
+    shown = f"{what} {text.strip()!r}" if what else repr(text.strip())
     try:
         value = parse_float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{what} {text.strip()!r} is not a number; expected "
-                                          f"{expected}") from None
+        raise argparse.ArgumentTypeError(f"{shown} is not a number; expected {expected}") \
+            from None
     if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"{what} {text.strip()!r} is not finite; expected "
-                                          f"{expected}")
+        raise argparse.ArgumentTypeError(f"{shown} is not finite; expected {expected}")
     return value
 
 
 def theta(text):
     """A polar angle in degrees, 0 (the normal) to 90 (the horizon)."""
-    value = _degrees(text, "theta", THETA_RANGE)
+    value = _finite(text, "theta", THETA_RANGE)
     if not 0.0 <= value <= 90.0:
         raise argparse.ArgumentTypeError(f"theta {value:g} is outside [0, 90] degrees")
     return value
@@ -123,7 +117,7 @@ def theta(text):
 
 def phi(text):
     """An azimuth in degrees (any finite value; measured from the tangent x towards y)."""
-    return _degrees(text, "phi", PHI_RANGE)
+    return _finite(text, "phi", PHI_RANGE)
 
 
 def direction(text):
