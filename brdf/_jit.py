@@ -27,13 +27,15 @@ from numba.extending import intrinsic
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
 _KERNEL_MODULE = re.compile(rb"^from \.+_jit import|^import brdf\._jit", re.M)
+#: Modules that kernels are generated from without compiling any (the family table).
+_GENERATED_FROM = (os.path.join(_PACKAGE, "models", "_kinds.py"),)
 
 
 def _package_stamp():
-    """Hash of the source of every module that compiles kernels (imports this module) and of
-    this module: a kernel can only inline code from such modules. Modules without kernels
-    (plots, scenes, the demo, the command line) are left out, so editing them keeps the cache
-    (recompiling everything costs minutes on two cores)."""
+    """Hash of the source of every module that compiles kernels (imports this module), of the
+    modules kernels are generated from, and of this module: a kernel can only inline code from
+    such modules. Modules without kernels (plots, scenes, the demo, the command line) are left
+    out, so editing them keeps the cache (recompiling everything costs minutes on two cores)."""
     h = hashlib.sha256()
     for root, dirs, files in os.walk(_PACKAGE):
         dirs[:] = sorted(d for d in dirs if d != "__pycache__")
@@ -41,7 +43,8 @@ def _package_stamp():
             path = os.path.join(root, name)
             with open(path, "rb") as f:
                 source = f.read()
-            if path == os.path.abspath(__file__) or _KERNEL_MODULE.search(source):
+            if (path == os.path.abspath(__file__) or path in _GENERATED_FROM
+                    or _KERNEL_MODULE.search(source)):
                 h.update(os.path.relpath(path, _PACKAGE).encode() + b"\0" + source + b"\0")
     return h.hexdigest()
 

@@ -2,7 +2,8 @@
 
 A model reaches the kernels as ``(kinds, offsets, params, nch)`` (see ``Model.compile``): lobe
 ``l`` has family ``kinds[l]`` and reads its packed parameters ``params[offsets[l]:offsets[l+1]]``.
-Every family module provides scalar kernels with these signatures (wi, wo in the local frame):
+Every family is one row of the table ``_kinds.FAMILIES`` and one module that provides these
+scalar kernels (wi, wo in the local frame; the dispatchers below are generated from the table):
 
 - ``eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)``: add f(wi, wo) to ``out[k, :nch]``;
 - ``grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)``: the same, and set ``d[j, k, c]`` to the
@@ -13,151 +14,28 @@ Every family module provides scalar kernels with these signatures (wi, wo in the
 - ``pdf_(q, nch, ix, iy, iz, ox, oy, oz) -> pdf`` (solid angle, 0 below the horizon);
 - ``hint_(q, nch, ix, iy, iz) -> float``: a cheap estimate of the albedo (channel mean), used only
   to choose lobes when sampling a sum, so it changes variance, never the expected value;
-- optionally ``albedo_weight_``, the albedo's integrand f cos / pdf in closed form (see
-  ``lobe_weight``), where that is cheaper than ``eval`` and ``pdf`` or the albedo integrates the
-  lobe's terms apart.
+- optionally ``albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out) -> (cos_o, piece)``, the
+  albedo's integrand f cos / pdf in closed form (see ``lobe_weight``), where that is cheaper
+  than ``eval`` and ``pdf`` or the albedo integrates the lobe's terms apart (``ALBEDO_TERMS``);
+- for a delta lobe, ``reflectance_(q, nch, ch, iz)`` instead of ``eval_``, ``grad_`` and ``pdf_``.
+
+A kernel may take any of these parameters by name, and a module serving several families (GGX
+and Beckmann, Phong's two forms) takes the row's variant as an extra first parameter.
 
 The same scalar functions serve checks, fitting, plots and the renderer: there is no second copy
 of any formula. (The closed-form albedo weights are ratios of a family's formulas, simplified;
 tests hold them to ``eval`` cos / ``pdf``.)
 """
 
+import importlib
+import inspect
+
 import numpy as np
 from numba import prange
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from . import _kinds as K
-from . import lambert, microfacet, mirror
-from . import blinn_phong, phong
-from . import ward
-from . import ashikhmin_shirley, lafortune
-
-
-@inline_kernel
-def lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    if kind == K.LAMBERT:
-        lambert.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.GGX:
-        microfacet.eval_(microfacet.GGX, q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.BECKMANN:
-        microfacet.eval_(microfacet.BECKMANN, q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.PHONG:
-        phong.eval_(phong.ORIGINAL, q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.MODIFIED_PHONG:
-        phong.eval_(phong.MODIFIED, q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.BLINN_PHONG:
-        blinn_phong.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.WARD:
-        ward.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.LAFORTUNE:
-        lafortune.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
-    elif kind == K.ASHIKHMIN_SHIRLEY:
-        ashikhmin_shirley.eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k)
-
-
-@inline_kernel
-def lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
-    """Add f(wi, wo) to ``out[k, :nch]`` and set ``d[j, k, c]`` to df_c / dq[j] for each packed
-    parameter q[j] that f depends on; other entries of ``d`` are left alone (the caller zeroes
-    them once). A mirror's eval is 0, and so are its derivatives."""
-    if kind == K.LAMBERT:
-        lambert.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.GGX:
-        microfacet.grad_(microfacet.GGX, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.BECKMANN:
-        microfacet.grad_(microfacet.BECKMANN, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.PHONG:
-        phong.grad_(phong.ORIGINAL, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.MODIFIED_PHONG:
-        phong.grad_(phong.MODIFIED, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.BLINN_PHONG:
-        blinn_phong.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.WARD:
-        ward.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.LAFORTUNE:
-        lafortune.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-    elif kind == K.ASHIKHMIN_SHIRLEY:
-        ashikhmin_shirley.grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
-
-
-@kernel
-def lobe_sample(kind, q, nch, ix, iy, iz, u1, u2):
-    if kind == K.LAMBERT:
-        return lambert.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.MIRROR:
-        return mirror.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.GGX:
-        return microfacet.sample_(microfacet.GGX, q, nch, ix, iy, iz, u1, u2)
-    if kind == K.BECKMANN:
-        return microfacet.sample_(microfacet.BECKMANN, q, nch, ix, iy, iz, u1, u2)
-    if kind == K.PHONG or kind == K.MODIFIED_PHONG:
-        return phong.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.BLINN_PHONG:
-        return blinn_phong.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.WARD:
-        return ward.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.LAFORTUNE:
-        return lafortune.sample_(q, nch, ix, iy, iz, u1, u2)
-    if kind == K.ASHIKHMIN_SHIRLEY:
-        return ashikhmin_shirley.sample_(q, nch, ix, iy, iz, u1, u2)
-    return 0.0, 0.0, 1.0, 0.0
-
-
-@kernel
-def lobe_pdf(kind, q, nch, ix, iy, iz, ox, oy, oz):
-    if kind == K.LAMBERT:
-        return lambert.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.GGX:
-        return microfacet.pdf_(microfacet.GGX, q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.BECKMANN:
-        return microfacet.pdf_(microfacet.BECKMANN, q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.PHONG or kind == K.MODIFIED_PHONG:
-        return phong.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.BLINN_PHONG:
-        return blinn_phong.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.WARD:
-        return ward.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.LAFORTUNE:
-        return lafortune.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    if kind == K.ASHIKHMIN_SHIRLEY:
-        return ashikhmin_shirley.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
-    return 0.0
-
-
-@kernel
-def lobe_hint(kind, q, nch, ix, iy, iz):
-    if kind == K.LAMBERT:
-        return lambert.hint_(q, nch, ix, iy, iz)
-    if kind == K.MIRROR:
-        return mirror.hint_(q, nch, ix, iy, iz)
-    if kind == K.GGX or kind == K.BECKMANN:
-        return microfacet.hint_(q, nch, ix, iy, iz)
-    if kind == K.PHONG:
-        return phong.hint_(phong.ORIGINAL, q, nch, ix, iy, iz)
-    if kind == K.MODIFIED_PHONG:
-        return phong.hint_(phong.MODIFIED, q, nch, ix, iy, iz)
-    if kind == K.BLINN_PHONG:
-        return blinn_phong.hint_(q, nch, ix, iy, iz)
-    if kind == K.WARD:
-        return ward.hint_(q, nch, ix, iy, iz)
-    if kind == K.LAFORTUNE:
-        return lafortune.hint_(q, nch, ix, iy, iz)
-    if kind == K.ASHIKHMIN_SHIRLEY:
-        return ashikhmin_shirley.hint_(q, nch, ix, iy, iz)
-    return 0.0
-
-
-@kernel
-def is_delta(kind):
-    return kind == K.MIRROR
-
-
-@kernel
-def delta_reflectance(kind, q, nch, ch, iz):
-    """Reflectance of a delta lobe in channel ``ch`` (its albedo and its sampling weight)."""
-    if kind == K.MIRROR:
-        return mirror.reflectance_(q, nch, ch, iz)
-    return 0.0
+from . import lambert
 
 
 #: The largest double below 1: uniform numbers lie in [0, 1).
@@ -166,17 +44,134 @@ BELOW_ONE = 1.0 - 2.0 ** -53
 HORIZON_MARGIN = 1e-9
 
 
-@kernel
-def lobe_terms(kind):
-    """Number of terms the albedo integrates apart, each over its own sampler's unit square."""
-    if kind == K.ASHIKHMIN_SHIRLEY:
-        return ashikhmin_shirley.ALBEDO_TERMS
-    return 1
+# --- dispatchers, generated from the family table -------------------------------------------
+#
+# Each dispatcher below is a chain of ``if kind == K.NAME:`` tests, one per family of
+# ``K.FAMILIES`` (families whose code is the same share a test), written out as source
+# and compiled here: numba then inlines each family's kernel into its branch, as it did for
+# the hand-written chains, and caches the dispatchers like any kernel of this file (their
+# source is a function of this file, the table and the family modules, all in the cache
+# stamp). A hook receives the dispatcher's arguments of the same names; a first parameter of
+# another name (``dist``, ``form``) receives the row's variant. ``DISPATCH_SOURCE`` holds the
+# generated source.
+#
+# Hooks and their fallbacks, the same for every family:
+#
+# - ``reflectance_`` makes the family a delta lobe: its eval, grad and pdf are 0 by this
+#   declaration (it may not define ``eval_``, ``grad_`` or ``pdf_``);
+# - ``eval_``, ``grad_``, ``pdf_`` (non-delta families), ``sample_`` and ``hint_``: required;
+# - ``albedo_weight_``: optional, else the albedo's weight is eval cos / pdf (``lobe_weight``);
+# - ``ALBEDO_TERMS``: optional, else 1.
+
+_DISPATCHERS = (
+    # name, decorator, parameters, hook, statement or expression, delta body, fallback, doc
+    ("lobe_eval", "inline_kernel", "kind, q, nch, ix, iy, iz, ox, oy, oz, out, k", "eval_",
+     "{call}", "pass  # a delta lobe has no density with respect to solid angle", None,
+     "Add f(wi, wo) to ``out[k, :nch]`` (nothing for an unknown kind)."),
+    ("lobe_grad", "inline_kernel", "kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d", "grad_",
+     "{call}", "pass  # a delta lobe's eval is 0, and so are its derivatives", None,
+     "Add f(wi, wo) to ``out[k, :nch]`` and set ``d[j, k, c]`` to df_c / dq[j] for each packed\n"
+     "    parameter q[j] that f depends on; other entries of ``d`` are left alone (the caller\n"
+     "    zeroes them once)."),
+    ("lobe_sample", "kernel", "kind, q, nch, ix, iy, iz, u1, u2", "sample_",
+     "return {call}", None, "return 0.0, 0.0, 1.0, 0.0",
+     "Draw wo given wi: ``(ox, oy, oz, pdf)``, pdf 0 for no sample, inf for a delta lobe."),
+    ("lobe_pdf", "kernel", "kind, q, nch, ix, iy, iz, ox, oy, oz", "pdf_",
+     "return {call}", "return 0.0  # a delta lobe has no density with respect to solid angle",
+     "return 0.0", "Solid-angle density of ``lobe_sample``'s wo (0 below the horizon)."),
+    ("lobe_hint", "kernel", "kind, q, nch, ix, iy, iz", "hint_",
+     "return {call}", None, "return 0.0",
+     "A cheap estimate of the albedo at wi, for choosing lobes when sampling a sum."),
+    ("delta_reflectance", "kernel", "kind, q, nch, ch, iz", "reflectance_",
+     "return {call}", None, "return 0.0",
+     "Reflectance of a delta lobe in channel ``ch`` (its albedo and its sampling weight)."),
+)
 
 
-@inline_kernel
-def lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, out):
-    """The albedo's integrand: f cos(theta_o) / pdf of term ``term`` of a lobe at the sample drawn
+def _hook_call(row, module, hook, params):
+    """Source of the call of ``module.hook`` with the dispatcher's ``params`` by name."""
+    kind, _, name, variant = row
+    fn = getattr(module, hook)
+    args = []
+    for i, arg in enumerate(inspect.signature(fn.py_func).parameters):
+        if arg in params:
+            args.append(arg)
+        elif i == 0 and variant is not None:
+            args.append(f"{name}.{variant}")
+        else:
+            raise ImportError(f"family {kind}: brdf.models.{name}.{hook} takes {arg!r}, which "
+                              f"is neither a variant nor one of {', '.join(params)}")
+    return f"{name}.{hook}({', '.join(args)})"
+
+
+def _is_delta_family(kind, module):
+    if not hasattr(module, "reflectance_"):
+        return False
+    extra = [h for h in ("eval_", "grad_", "pdf_") if hasattr(module, h)]
+    if extra:
+        raise ImportError(f"family {kind}: a delta lobe (it has reflectance_) has eval, grad and "
+                          f"pdf 0 by declaration; remove {', '.join(extra)}")
+    return True
+
+
+def _branches(hook, params, template, delta_body, optional):
+    """``(condition, body)`` for each family that the hook concerns, neighbours with the same
+    body merged into one condition."""
+    out = []
+    for row in K.FAMILIES:
+        kind, _, name, _ = row
+        module = _FAMILY_MODULES[name]
+        if delta_body is not None and _is_delta_family(kind, module):
+            body = delta_body
+        elif hasattr(module, hook):
+            body = template.format(call=_hook_call(row, module, hook, params))
+        elif optional:
+            continue
+        else:
+            raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
+        if out and out[-1][1] == body:
+            out[-1] = (out[-1][0] + f" or kind == K.{kind}", body)
+        else:
+            out.append((f"kind == K.{kind}", body))
+    return out
+
+
+def _chain(branches, fallback, indent="    "):
+    """if/elif lines of ``branches``; statement chains end without else, returning chains with
+    ``fallback`` (a list of lines: the else branch)."""
+    lines = []
+    returns = fallback is not None and not isinstance(fallback, list)
+    for i, (cond, body) in enumerate(branches):
+        head = "if" if (returns or i == 0) else "elif"
+        lines += [f"{indent}{head} {cond}:"] + [f"{indent}    {b}" for b in body.split("\n")]
+    if returns:
+        lines.append(f"{indent}{fallback}")
+    elif fallback:
+        if branches:
+            lines += [f"{indent}else:"] + [f"{indent}    {b}" for b in fallback]
+        else:
+            lines += [f"{indent}{b}" for b in fallback]
+    return lines
+
+
+def _function(decorator, name, params, doc, lines):
+    return "\n".join([f"@{decorator}", f"def {name}({params}):", f'    """{doc}"""', *lines, ""])
+
+
+# what lobe_weight does for a family without albedo_weight_: eval cos / pdf at the sample
+_WEIGHT_FROM_EVAL = """\
+ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
+piece = 1 if (pdf > 0.0 and oz > 0.0) else 0
+if piece:
+    for c in range(nch):
+        out[0, c] = 0.0
+    lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, 0)
+    s = oz / pdf
+    for c in range(nch):
+        out[0, c] *= s""".split("\n")
+
+_WEIGHT_DOC = """\
+The albedo's integrand: f cos(theta_o) / pdf of term ``term`` of a lobe at the sample drawn
     from (u1, u2), into ``out[0, :nch]``. Returns the sample's zone: -1 below the horizon (past
     a margin: samplers map the square's edges onto the horizon itself), 0 otherwise invalid (no
     weight), or the smooth piece of the integrand that holds the sample, 1 or more; where
@@ -185,27 +180,43 @@ def lobe_weight(kind, q, nch, term, ix, iy, iz, u1, u2, out):
     Families with a cheaper closed form of the ratio, with terms integrated apart or with
     several pieces provide ``albedo_weight_``, which returns cos(theta_o) and the piece (0 when
     invalid); for the others the weight is ``eval`` times cos / ``pdf`` at the sample."""
-    if kind == K.GGX:
-        oz, piece = microfacet.albedo_weight_(microfacet.GGX, q, nch, ix, iy, iz, u1, u2, out)
-    elif kind == K.BECKMANN:
-        oz, piece = microfacet.albedo_weight_(microfacet.BECKMANN, q, nch, ix, iy, iz, u1, u2,
-                                              out)
-    elif kind == K.ASHIKHMIN_SHIRLEY:
-        oz, piece = ashikhmin_shirley.albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out)
-    else:
-        ox, oy, oz, pdf = lobe_sample(kind, q, nch, ix, iy, iz, u1, u2)
-        piece = 1 if (pdf > 0.0 and oz > 0.0) else 0
-        if piece:
-            for c in range(nch):
-                out[0, c] = 0.0
-            lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, 0)
-            s = oz / pdf
-            for c in range(nch):
-                out[0, c] *= s
-    if piece > 0:
-        return piece
-    return -1 if oz < -HORIZON_MARGIN else 0
 
+
+def _generate():
+    """Source of every dispatcher over the family table."""
+    parts = []
+    for name, decorator, params, hook, template, delta_body, fallback, doc in _DISPATCHERS:
+        names = params.split(", ")
+        optional = hook == "reflectance_"
+        lines = _chain(_branches(hook, names, template, delta_body, optional), fallback)
+        parts.append(_function(decorator, name, params, doc, lines or ["    pass"]))
+    delta = [f"kind == K.{kind}" for kind, _, name, _ in K.FAMILIES
+             if _is_delta_family(kind, _FAMILY_MODULES[name])]
+    parts.append(_function("kernel", "is_delta", "kind", "Whether ``kind`` is a delta lobe.",
+                           [f"    return {' or '.join(delta) if delta else 'False'}"]))
+    terms = [(f"kind == K.{kind}", f"return {name}.ALBEDO_TERMS")
+             for kind, _, name, _ in K.FAMILIES if hasattr(_FAMILY_MODULES[name], "ALBEDO_TERMS")]
+    parts.append(_function("kernel", "lobe_terms", "kind", "Number of terms the albedo "
+                           "integrates apart, each over its own sampler's unit square.",
+                           _chain(terms, "return 1")))
+    params = "kind, q, nch, term, ix, iy, iz, u1, u2, out"
+    weights = _branches("albedo_weight_", params.split(", "), "oz, piece = {call}", None, True)
+    lines = _chain(weights, _WEIGHT_FROM_EVAL)
+    lines += ["    if piece > 0:", "        return piece",
+              "    return -1 if oz < -HORIZON_MARGIN else 0"]
+    parts.append(_function("inline_kernel", "lobe_weight", params, _WEIGHT_DOC, lines))
+    return "\n\n".join(parts)
+
+
+_FAMILY_MODULES = {name: importlib.import_module(f".{name}", __package__)
+                   for name in K.MODULES}
+for _name, _module in _FAMILY_MODULES.items():
+    if globals().setdefault(_name, _module) is not _module:
+        raise ImportError(f"family module name {_name!r} is taken in brdf.models._kernels")
+#: The generated source of the dispatchers (compiled under this file's name, so that numba
+#: caches them beside the file's other kernels).
+DISPATCH_SOURCE = _generate()
+exec(compile(DISPATCH_SOURCE, __file__, "exec"), globals())
 
 # --- mixtures ---------------------------------------------------------------------------------
 #

@@ -2,7 +2,7 @@
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import kernel
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Model, Nested, Param
@@ -29,21 +29,11 @@ class Mirror(Model):
               Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_i)"))
 
 
-@inline_kernel
-def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    pass  # a delta lobe has no density with respect to solid angle
-
-
 @kernel
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return -ix, -iy, iz, 0.0
     return -ix, -iy, iz, math.inf
-
-
-@kernel
-def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
-    return 0.0
 
 
 @kernel
