@@ -20,7 +20,8 @@ from numba import prange
 
 from .._jit import allocating_kernel, fetch_add, inline_kernel, kernel, parallel_kernel
 from .. import sampling
-from ._intersect import LANES, PACKET, QUAD, SPHERE, STACK, plane_coordinates, trace_packet
+from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
+                         plane_coordinates, trace_packet)
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
                       pick_light, sample_light)
 from ._materials import K0, K1, SHARE, bsdf_shade, material_params
@@ -130,32 +131,76 @@ def _power(a, b):
 
 # --- the packet of paths ----------------------------------------------------------------------
 #
-# A path's state lives in lane j of the work arrays: ``fl`` (float rows below; rows 0-5 are the
-# ray it traces next, as :func:`trace_packet` reads them), ``il`` (integer rows), ``state``
-# (its random stream), ``sh`` (its shadow ray: rows 0-5, and 6 the ray's length), ``q`` and
-# ``f`` (the BSDF's query sets and values, :func:`._materials.bsdf_shade`: 0 towards the
-# light, 1 the sampled direction) and ``lp`` (the packed parameters of its material).
+# A path's state lives in lane j of the work arrays: ``fl`` (the float rows of FLOAT_LAYOUT),
+# ``il`` (the integer rows of INT_LAYOUT), ``state`` (its random stream), ``sh`` (its shadow
+# ray, SHADOW_LAYOUT), ``q`` and ``f`` (the BSDF's query sets and values,
+# :func:`._materials.bsdf_shade`: 0 towards the light, 1 the sampled direction) and ``lp`` (the
+# packed parameters of its material). A layout lists its blocks of rows in order, with their
+# widths; the names are the blocks' first rows, so a block is added, widened or moved in one
+# line (``fl`` and ``sh`` start with the ray, whose rows :func:`trace_packet` reads).
 
-#: rows of ``fl``: the ray, its hit distance, throughput, radiance, the density of the last
-#: bounce; the vertex's geometric and shading normals, tangent and bitangent, the ray origin
-#: off the surface; the light sample's radiance, density and light probability, and the
-#: vertex's uniform numbers (see :func:`_draw`)
-(OX, OY, OZ, DX, DY, DZ, T, THR, RAD, PREV, NX, NY, NZ, SX, SY, SZ, AX, AY, AZ, BX, BY, BZ,
- QX, QY, QZ, LI, LPDF, LPICK, U) = (0, 1, 2, 3, 4, 5, 6, 7, 10, 13, 14, 15, 16, 17, 18, 19, 20,
-                                    21, 22, 23, 24, 25, 26, 27, 28, 29, 32, 33, 34)
-#: the vertex's uniform numbers, in rows U + k: the light, a point on it, the BSDF sample's pair,
-#: Russian roulette
-PICK, ON_LIGHT, BSDF_U1, BSDF_U2, ROULETTE = range(5)
-FLOAT_ROWS = U + 5
-#: rows of ``il``: the path is in flight, its pixel, depth (segments traced), whether the last
-#: bounce was specular, the slot its ray hit, its shading batch (its material's ``SHARE``), the
-#: lane of ``sh`` that holds its shadow ray (-1: none), what the shadow ray in each lane of
-#: ``sh`` hit, whether the path ends at this vertex, work space of the tracing (whether a ray
-#: enters a node) and of the shading (the lobe each path sampled, the lengths of the lists of
-#: lanes, five lists)
+#: The vertex's uniform numbers, in rows U + k of ``fl``: the light, a point on it, the BSDF
+#: sample's pair, Russian roulette
+UNIFORMS = 5
+PICK, ON_LIGHT, BSDF_U1, BSDF_U2, ROULETTE = range(UNIFORMS)
+
+
+def _offsets(layout):
+    """First rows of the consecutive blocks of ``layout`` ``((name, rows, what), ...)``, and
+    the number of rows they fill. Computed once, at import: numba reads module globals as
+    constants when it compiles a kernel."""
+    first, k = [], 0
+    for _, rows, _ in layout:
+        first.append(k)
+        k += rows
+    return tuple(first), k
+
+
+#: rows of ``fl``, block by block (the names below are the blocks' first rows)
+FLOAT_LAYOUT = (
+    ("RAY", RAY_ROWS, "the ray the path traces next"),
+    ("T", 1, "the ray's length (inf; -1: an idle lane), then its hit distance"),
+    ("THR", 3, "the path's throughput"),
+    ("RAD", 3, "the radiance it has gathered"),
+    ("PREV", 1, "the density of its last bounce"),
+    ("N", 3, "the vertex's geometric normal, on the side the ray arrives from"),
+    ("S", 3, "its shading normal"),
+    ("A", 3, "its shading tangent"),
+    ("B", 3, "its shading bitangent"),
+    ("Q", 3, "the next ray's origin, off the surface"),
+    ("LI", 3, "the light sample's incident radiance (or irradiance of a delta light)"),
+    ("LPDF", 1, "its solid-angle density"),
+    ("LPICK", 1, "the probability of picking its light"),
+    ("U", UNIFORMS, "the vertex's uniform numbers (see _draw and below)"),
+)
+(RAY, T, THR, RAD, PREV, N, S, A, B, Q, LI, LPDF, LPICK, U), FLOAT_ROWS = _offsets(FLOAT_LAYOUT)
+O, D = RAY + ORIGIN, RAY + DIRECTION
+#: rows of ``il``, block by block
+INT_LAYOUT = (
+    ("ALIVE", 1, "the path is in flight"),
+    ("PIXEL_X", 1, "its pixel's column"),
+    ("PIXEL_Y", 1, "its pixel's row"),
+    ("DEPTH_", 1, "its depth (segments traced)"),
+    ("SPECULAR", 1, "whether its last bounce was specular"),
+    ("HIT", 1, "the slot its ray hit (-1: none)"),
+    ("MAT", 1, "its shading batch (its material's SHARE)"),
+    ("NEE", 1, "the lane of sh that holds its shadow ray (-1: none)"),
+    ("BLOCKER", 1, "what the shadow ray in each lane of sh hit"),
+    ("END", 1, "whether the path ends at this vertex"),
+    ("ENTERS", 1, "tracing's work space: whether a ray enters a node"),
+    ("CHOSEN", 1, "shading's work space: the lobe each path sampled"),
+    ("COUNT", 1, "the lengths of the lists of lanes"),
+    ("LIST", 5, "the lists of lanes of a shading batch (see bsdf_shade)"),
+)
 (ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
- LIST) = range(14)
-INT_ROWS = LIST + 5
+ LIST), INT_ROWS = _offsets(INT_LAYOUT)
+#: rows of ``sh``, block by block
+SHADOW_LAYOUT = (
+    ("RAY", RAY_ROWS, "the shadow ray, from Q towards the light"),
+    ("LENGTH", 1, "its length short of the light (inf: none), -1 in an idle lane"),
+)
+(_, LENGTH), SHADOW_ROWS = _offsets(SHADOW_LAYOUT)
+
 #: Length of the rows of the work arrays: PACKET lanes, then 8 unused. Rows of a power of two
 #: of numbers (256: 2 KiB) lie a multiple of 2 KiB apart, so a lane's numbers in every row of
 #: every array fell into the same few sets of the 12-way L1 data cache, and the 50-odd rows a
@@ -183,7 +228,7 @@ def _draw(fl, state):
     """Every lane's five numbers for its next vertex (rows U to U + 4), drawn from its stream in
     one pass that runs in SIMD lanes. A path that ends at the vertex leaves some unused; the
     next path in its lane starts a stream of its own."""
-    for k in range(5):
+    for k in range(UNIFORMS):
         for j in range(PACKET):
             fl[U + k, j] = _uniform(state, j)
 
@@ -192,8 +237,9 @@ def _draw(fl, state):
 def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
     """Start the path of (pixel, sample) in lane j: its stream and camera ray."""
     state[j] = _stream(seed, y * opts[W] + x, sample)
-    fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j] = _camera_ray(cam, opts, x,
-                                                                                   y, state, j)
+    ox, oy, oz, dx, dy, dz = _camera_ray(cam, opts, x, y, state, j)
+    fl[O, j], fl[O + 1, j], fl[O + 2, j] = ox, oy, oz
+    fl[D, j], fl[D + 1, j], fl[D + 2, j] = dx, dy, dz
     for c in range(3):
         fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
     fl[PREV, j] = 0.0
@@ -249,11 +295,12 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
     shading = shadows = 0
     for j in range(PACKET):
         il[NEE, j], il[END, j] = -1, 0
-        sh[6, j] = -1.0  # idle (slots below j are taken or idle already)
+        sh[LENGTH, j] = -1.0  # idle (slots below j are taken or idle already)
         if not il[ALIVE, j]:
             continue
         specular = il[SPECULAR, j] != 0
-        ox, oy, oz, dx, dy, dz = fl[OX, j], fl[OY, j], fl[OZ, j], fl[DX, j], fl[DY, j], fl[DZ, j]
+        ox, oy, oz = fl[O, j], fl[O + 1, j], fl[O + 2, j]
+        dx, dy, dz = fl[D, j], fl[D + 1, j], fl[D + 2, j]
         slot = il[HIT, j]
         if slot < 0:
             if env_light >= 0 and (strategy != LIGHT or specular):
@@ -302,8 +349,10 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             bx, by, bz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
         else:
             ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
-        fl[NX, j], fl[NY, j], fl[NZ, j], fl[SX, j], fl[SY, j], fl[SZ, j] = nx, ny, nz, sx, sy, sz
-        fl[AX, j], fl[AY, j], fl[AZ, j], fl[BX, j], fl[BY, j], fl[BZ, j] = ax, ay, az, bx, by, bz
+        fl[N, j], fl[N + 1, j], fl[N + 2, j] = nx, ny, nz
+        fl[S, j], fl[S + 1, j], fl[S + 2, j] = sx, sy, sz
+        fl[A, j], fl[A + 1, j], fl[A + 2, j] = ax, ay, az
+        fl[B, j], fl[B + 1, j], fl[B + 2, j] = bx, by, bz
         for s in range(2):
             q[s, 3, j] = -(dx * ax + dy * ay + dz * az)
             q[s, 4, j] = -(dx * bx + dy * by + dz * bz)
@@ -311,7 +360,7 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
         material_params(mint, params, bind, tex, texmeta, m, u, v, lp[j])
         il[MAT, j] = mint[m, SHARE]
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
-        fl[QX, j], fl[QY, j], fl[QZ, j] = qx, qy, qz
+        fl[Q, j], fl[Q + 1, j], fl[Q + 2, j] = qx, qy, qz
         # next-event estimation: a light, a point or direction on it, and its shadow ray
         if nlights > 0:
             l, ul = pick_light(pmf, fl[U + PICK, j])
@@ -323,9 +372,9 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
                         and ldx * nx + ldy * ny + ldz * nz > 0.0):
                     k = il[NEE, j] = shadows
                     shadows += 1
-                    sh[0, k], sh[1, k], sh[2, k], sh[3, k], sh[4, k], sh[5, k] = (qx, qy, qz, ldx,
-                                                                                   ldy, ldz)
-                    sh[6, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+                    sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
+                    sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
+                    sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
                     q[0, 0, j] = ldx * ax + ldy * ay + ldz * az
                     q[0, 1, j] = ldx * bx + ldy * by + ldz * bz
                     q[0, 2, j] = ldx * sx + ldy * sy + ldz * sz
@@ -341,7 +390,7 @@ def _lit(il, sh, j):
     """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length);
     no branch, since that is a coin toss a branch predictor misses half the time."""
     nee = il[NEE, j]
-    return (nee >= 0) & (sh[6, max(nee, 0)] >= 0.0)
+    return (nee >= 0) & (sh[LENGTH, max(nee, 0)] >= 0.0)
 
 
 @kernel
@@ -401,20 +450,20 @@ def _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j):
         x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
         for c in range(3):
             aov_acc[y, x, c] += f[1, j, c] if pdf != 0.0 else 0.0
-            aov_acc[y, x, 3 + c] += fl[SX + c, j]
+            aov_acc[y, x, 3 + c] += fl[S + c, j]
     if pdf == 0.0:
         il[END, j] = 1
         return
     for c in range(3):
         fl[THR + c, j] *= f[1, j, c]
-    dx = lx * fl[AX, j] + ly * fl[BX, j] + lz * fl[SX, j]
-    dy = lx * fl[AY, j] + ly * fl[BY, j] + lz * fl[SY, j]
-    dz = lx * fl[AZ, j] + ly * fl[BZ, j] + lz * fl[SZ, j]
-    if dx * fl[NX, j] + dy * fl[NY, j] + dz * fl[NZ, j] <= 0.0:
+    dx = lx * fl[A, j] + ly * fl[B, j] + lz * fl[S, j]
+    dy = lx * fl[A + 1, j] + ly * fl[B + 1, j] + lz * fl[S + 1, j]
+    dz = lx * fl[A + 2, j] + ly * fl[B + 2, j] + lz * fl[S + 2, j]
+    if dx * fl[N, j] + dy * fl[N + 1, j] + dz * fl[N + 2, j] <= 0.0:
         il[END, j] = 1  # below the geometric surface: the shading normal would leak light
         return
-    fl[OX, j], fl[OY, j], fl[OZ, j] = fl[QX, j], fl[QY, j], fl[QZ, j]
-    fl[DX, j], fl[DY, j], fl[DZ, j] = dx, dy, dz
+    fl[O, j], fl[O + 1, j], fl[O + 2, j] = fl[Q, j], fl[Q + 1, j], fl[Q + 2, j]
+    fl[D, j], fl[D + 1, j], fl[D + 2, j] = dx, dy, dz
     il[SPECULAR, j] = pdf == math.inf
     fl[PREV, j] = pdf
     il[DEPTH_, j] += 1
@@ -467,7 +516,7 @@ def trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots
         if shadows > 0:
             # whole SIMD registers of lanes (eight numbers: AVX-512)
             trace_packet(prim, sph, planes, box, child, slots, stack, dist, sh, inv, il[ENTERS],
-                         sh[6], il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
+                         sh[LENGTH], il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
         if shading > 0:
             _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel,
                    work)
@@ -478,7 +527,7 @@ def _packet_space(nparams, nlobes):
     """A packet's work arrays (zeroed: idle lanes' leftovers steer the packet's traversal, so
     they must not depend on what the memory held): see :func:`trace_tile`."""
     return (np.zeros((FLOAT_ROWS, ROW)), np.zeros((INT_ROWS, ROW), np.int64),
-            np.zeros(PACKET, np.uint64), np.zeros((7, ROW)), np.zeros((3, ROW)),
+            np.zeros(PACKET, np.uint64), np.zeros((SHADOW_ROWS, ROW)), np.zeros((3, ROW)),
             np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, 7, ROW)),
             np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)),
             np.zeros((PACKET, 2)), np.zeros(3))

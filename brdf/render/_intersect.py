@@ -45,6 +45,9 @@ LEAF_SIZE = 16
 #: test; a leaf of 9 primitives looped over its own count ran scalar, and a length of 8 is
 #: unrolled instead of vectorised.
 LANES = 16
+#: Rows of a packet's ``ray`` array (:func:`trace_packet`), a ray per column: its origin and
+#: unit direction.
+ORIGIN, DIRECTION, RAY_ROWS = 0, 3, 6
 #: Depth of the traversal stack (a median-split tree over 2^60 primitives fits).
 STACK = 64
 
@@ -177,6 +180,13 @@ def _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, start, o
     return best, found
 
 
+@inline_kernel
+def ray_at(ray, j):
+    """Origin and direction of the ray in column j of a packet's ``ray`` array."""
+    return (ray[ORIGIN, j], ray[ORIGIN + 1, j], ray[ORIGIN + 2, j], ray[DIRECTION, j],
+            ray[DIRECTION + 1, j], ray[DIRECTION + 2, j])
+
+
 # --- packets ---------------------------------------------------------------------------------
 #
 # The integrator traces its PACKET paths' rays together, one packet traversal of the tree for
@@ -213,9 +223,10 @@ def _packet_enters(box, nd, ray, inv, tmax, enters, n):
     hix, hiy, hiz = box[nd, 1, 0], box[nd, 1, 1], box[nd, 1, 2]
     count = 0
     for j in range(n):
-        t0x, t1x = (lox - ray[0, j]) * inv[0, j], (hix - ray[0, j]) * inv[0, j]
-        t0y, t1y = (loy - ray[1, j]) * inv[1, j], (hiy - ray[1, j]) * inv[1, j]
-        t0z, t1z = (loz - ray[2, j]) * inv[2, j], (hiz - ray[2, j]) * inv[2, j]
+        ox, oy, oz = ray_at(ray, j)[:3]
+        t0x, t1x = (lox - ox) * inv[0, j], (hix - ox) * inv[0, j]
+        t0y, t1y = (loy - oy) * inv[1, j], (hiy - oy) * inv[1, j]
+        t0z, t1z = (loz - oz) * inv[2, j], (hiz - oz) * inv[2, j]
         near = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
         far = min(min(max(t0x, t1x), max(t0y, t1y)), min(max(t0z, t1z), tmax[j]))
         enters[j] = near <= far * (1.0 + 1e-12)
@@ -236,8 +247,8 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
     if planes[b, PSPH, s] != 0.0:
         c = sph[prim[slots[slot], 1]]
         for j in range(n):
-            t = hit_sphere(c, ray[0, j], ray[1, j], ray[2, j], ray[3, j], ray[4, j], ray[5, j],
-                           tmax[j])
+            ox, oy, oz, dx, dy, dz = ray_at(ray, j)
+            t = hit_sphere(c, ox, oy, oz, dx, dy, dz, tmax[j])
             if t > 0.0:
                 tmax[j], hit[j] = t, slot
         return
@@ -247,9 +258,10 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
     bx, by, bz = planes[b, PQ2, s], planes[b, PQ2 + 1, s], planes[b, PQ2 + 2, s]
     tri = planes[b, PTRI, s]
     for j in range(n):
-        px, py, pz = cx - ray[0, j], cy - ray[1, j], cz - ray[2, j]
-        t = (px * nx + py * ny + pz * nz) / (ray[3, j] * nx + ray[4, j] * ny + ray[5, j] * nz)
-        hx, hy, hz = t * ray[3, j] - px, t * ray[4, j] - py, t * ray[5, j] - pz
+        ox, oy, oz, dx, dy, dz = ray_at(ray, j)
+        px, py, pz = cx - ox, cy - oy, cz - oz
+        t = (px * nx + py * ny + pz * nz) / (dx * nx + dy * ny + dz * nz)
+        hx, hy, hz = t * dx - px, t * dy - py, t * dz - pz
         u = hx * ax + hy * ay + hz * az
         v = hx * bx + hy * by + hz * bz
         inside = ((t > 0.0) & (t < tmax[j]) & (u >= 0.0) & (v >= 0.0)
@@ -272,7 +284,8 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
     ``enters`` (PACKET integers) are work space."""
     busy = 0
     for j in range(n):
-        inv[0, j], inv[1, j], inv[2, j] = 1.0 / ray[3, j], 1.0 / ray[4, j], 1.0 / ray[5, j]
+        _, _, _, dx, dy, dz = ray_at(ray, j)
+        inv[0, j], inv[1, j], inv[2, j] = 1.0 / dx, 1.0 / dy, 1.0 / dz
         hit[j] = -1
         busy += tmax[j] > 0.0
     stack[0] = 0
@@ -287,10 +300,10 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
             for j in range(n):
                 if not enters[j]:
                     continue
+                ox, oy, oz, dx, dy, dz = ray_at(ray, j)
                 t, slot = _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, nd,
-                                      ray[0, j], ray[1, j], ray[2, j], ray[3, j], ray[4, j],
-                                      ray[5, j], inv[0, j], inv[1, j], inv[2, j], tmax[j],
-                                      any_hit)
+                                      ox, oy, oz, dx, dy, dz, inv[0, j], inv[1, j], inv[2, j],
+                                      tmax[j], any_hit)
                 if slot >= 0:
                     tmax[j], hit[j] = (-1.0, slot) if any_hit else (t, slot)
                     busy -= any_hit
@@ -325,7 +338,7 @@ def _near_last(box, c0, c1, ray, n):
             gap, axis = g, a
     heading = 0.0
     for j in range(n):
-        heading += ray[3 + axis, j]
+        heading += ray[DIRECTION + axis, j]
     c0_low = box[c0, 0, axis] + box[c0, 1, axis] <= box[c1, 0, axis] + box[c1, 1, axis]
     return (c1, c0) if c0_low == (heading >= 0.0) else (c0, c1)
 
