@@ -369,19 +369,28 @@ def cosine_over_pdf(idx, n, oz, pdf, weight):
             weight[j, c] *= s
 
 
+#: Rows of a query set ``q[s] (QUERY_ROWS, n)`` of :func:`mixture_batch`, an item per column:
+#: the direction drawn (set DRAW) or weighed (set PAIR) given the GIVEN one, each a unit vector
+#: in the local frame (3 rows), and the density of DRAWN given GIVEN (PDF). The query sets, the
+#: first index of ``q`` and of the values ``f``: a given pair, and a draw.
+DRAWN, GIVEN, PDF, QUERY_ROWS = 0, 3, 6, 7
+PAIR, DRAW = 0, 1
+
+
 @kernel
 def mixture_batch(kinds, offs, p, step, nch, q, f, u1, u2, sel, work, chosen, lists, counts,
                   forward):
     """One pass of a mixture over a batch of items: what sampling, the densities and f need.
 
-    A query set ``q[s] (7, n)`` holds the given direction wi (rows 3-5), the other direction
-    wo (rows 0-2) and a density (row 6); ``lists[k][:counts[k]]`` are item lists:
+    A query set ``q[s]`` holds the given direction wi (rows GIVEN), the other direction wo
+    (rows DRAWN) and a density (row PDF); ``lists[k][:counts[k]]`` are item lists:
 
-    - at the items ``lists[0]``: the lobes' selection probabilities at wi into ``sel``;
-    - at ``lists[1]``: draw wo in set 1 with the uniform pair (u1_j, u2_j) (see
-      :func:`mixture_draw`); row 6 receives the mixture's density, ``f[1, j]`` the weight
-      f cos / pdf of continuous samples (``lists[4]`` collects them);
-    - in set 0, at ``lists[2]``: f into ``f[0, j]``; at ``lists[3]``: the density of wo.
+    - at the items ``lists[0]``: the lobes' selection probabilities at wi (set PAIR) into
+      ``sel``;
+    - at ``lists[1]``: draw wo in set DRAW with the uniform pair (u1_j, u2_j) (see
+      :func:`mixture_draw`); its row PDF receives the mixture's density, ``f[DRAW, j]`` the
+      weight f cos / pdf of continuous samples (``lists[4]`` collects them);
+    - in set PAIR, at ``lists[2]``: f into ``f[PAIR, j]``; at ``lists[3]``: the density of wo.
 
     f is evaluated as f(wi, wo) with ``forward``, else as f(wo, wi) (the renderer's order, which
     draws the direction towards the light given the one towards the viewer). One kernel serves
@@ -389,27 +398,30 @@ def mixture_batch(kinds, offs, p, step, nch, q, f, u1, u2, sel, work, chosen, li
     one call.
     """
     if kinds.shape[0] > 1:
-        mixture_selection(kinds, offs, p, step, nch, lists[0], counts[0], q[0, 3], q[0, 4],
-                          q[0, 5], sel)
-    d = q[1]
-    mixture_draw(kinds, offs, p, step, nch, lists[1], counts[1], d[3], d[4], d[5], u1, u2, d[0],
-                 d[1], d[2], d[6], f[1], sel, work, chosen)
-    sampled = continuous(lists[1], counts[1], d[6], lists[4])
-    a, b = (3, 0) if forward else (0, 3)
+        g = q[PAIR]
+        mixture_selection(kinds, offs, p, step, nch, lists[0], counts[0], g[GIVEN],
+                          g[GIVEN + 1], g[GIVEN + 2], sel)
+    d = q[DRAW]
+    mixture_draw(kinds, offs, p, step, nch, lists[1], counts[1], d[GIVEN], d[GIVEN + 1],
+                 d[GIVEN + 2], u1, u2, d[DRAWN], d[DRAWN + 1], d[DRAWN + 2], d[PDF], f[DRAW], sel,
+                 work, chosen)
+    sampled = continuous(lists[1], counts[1], d[PDF], lists[4])
+    a, b = (GIVEN, DRAWN) if forward else (DRAWN, GIVEN)
     # both query sets through one call of each: each call site inlines every family
-    for s in range(2):
-        ev, nev = (lists[2], counts[2]) if s == 0 else (lists[4], sampled)
-        pd, npd = (lists[3], counts[3]) if s == 0 else (lists[4], sampled)
-        if s == 1 and kinds.shape[0] == 1:
+    for s in (PAIR, DRAW):
+        ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
+        pd, npd = (lists[3], counts[3]) if s == PAIR else (lists[4], sampled)
+        if s == DRAW and kinds.shape[0] == 1:
             npd = 0  # a single lobe's draw has its density already
-        mixture_pdf(kinds, offs, p, step, nch, pd, npd, q[s, 3], q[s, 4], q[s, 5], q[s, 0],
-                    q[s, 1], q[s, 2], sel, q[s, 6])
+        g = q[s]
+        mixture_pdf(kinds, offs, p, step, nch, pd, npd, g[GIVEN], g[GIVEN + 1], g[GIVEN + 2],
+                    g[DRAWN], g[DRAWN + 1], g[DRAWN + 2], sel, g[PDF])
         for t in range(nev):
             for c in range(nch):
                 f[s, ev[t], c] = 0.0
-        mixture_eval(kinds, offs, p, step, nch, ev, nev, q[s, a], q[s, a + 1], q[s, a + 2],
-                     q[s, b], q[s, b + 1], q[s, b + 2], f[s])
-    cosine_over_pdf(lists[4], sampled, d[2], d[6], f[1])
+        mixture_eval(kinds, offs, p, step, nch, ev, nev, g[a], g[a + 1], g[a + 2], g[b],
+                     g[b + 1], g[b + 2], f[s])
+    cosine_over_pdf(lists[4], sampled, d[DRAWN + 2], d[PDF], f[DRAW])
 
 
 # --- array drivers ---------------------------------------------------------------------------
@@ -469,13 +481,13 @@ def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
     q, f, u, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
     for t in range(m):
         for a in range(3):
-            q[0, 3 + a, t], q[0, a, t] = wi[k0 + t, a], wo[k0 + t, a]
+            q[PAIR, GIVEN + a, t], q[PAIR, DRAWN + a, t] = wi[k0 + t, a], wo[k0 + t, a]
         lists[0, t] = lists[3, t] = t
     counts[0] = counts[3] = m
     mixture_batch(kinds, offs, p.reshape((1, p.shape[0])), 0, nch, q, f, u[0], u[1], sel, work,
                   chosen, lists, counts, True)
     for t in range(m):
-        out[k0 + t] = q[0, 6, t]
+        out[k0 + t] = q[PAIR, PDF, t]
 
 
 @allocating_kernel
@@ -484,7 +496,7 @@ def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
     q, f, uu, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
     for t in range(m):
         for a in range(3):
-            q[0, 3 + a, t] = q[1, 3 + a, t] = wi[k0 + t, a]
+            q[PAIR, GIVEN + a, t] = q[DRAW, GIVEN + a, t] = wi[k0 + t, a]
         uu[0, t], uu[1, t] = u[k0 + t, 0], u[k0 + t, 1]
         lists[0, t] = lists[1, t] = t
     counts[0] = counts[1] = m
@@ -492,17 +504,17 @@ def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
                   chosen, lists, counts, True)
     for t in range(m):
         for a in range(3):
-            wo[k0 + t, a] = q[1, a, t]
-        pdf[k0 + t] = q[1, 6, t]
+            wo[k0 + t, a] = q[DRAW, DRAWN + a, t]
+        pdf[k0 + t] = q[DRAW, PDF, t]
         for c in range(nch):
-            weight[k0 + t, c] = f[1, t, c]
+            weight[k0 + t, c] = f[DRAW, t, c]
 
 
 @allocating_kernel
 def _batch_space(nl, nch):
     """Work space of :func:`mixture_batch` for BATCH items of ``nl`` lobes: query sets, values,
     the uniform pair, selection, work and chosen, five lists and their counts."""
-    return (np.zeros((2, 7, BATCH)), np.zeros((2, BATCH, nch)), np.zeros((2, BATCH)),
+    return (np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, nch)), np.zeros((2, BATCH)),
             np.zeros((BATCH, nl)), np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64),
             np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64))
 

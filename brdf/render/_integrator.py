@@ -24,6 +24,7 @@ from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHER
                          plane_coordinates, trace_packet)
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
                       pick_light, sample_light)
+from ..models._kernels import DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS
 from ._materials import K0, K1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
@@ -134,8 +135,8 @@ def _power(a, b):
 # A path's state lives in lane j of the work arrays: ``fl`` (the float rows of FLOAT_LAYOUT),
 # ``il`` (the integer rows of INT_LAYOUT), ``state`` (its random stream), ``sh`` (its shadow
 # ray, SHADOW_LAYOUT), ``q`` and ``f`` (the BSDF's query sets and values,
-# :func:`._materials.bsdf_shade`: 0 towards the light, 1 the sampled direction) and ``lp`` (the
-# packed parameters of its material). A layout lists its blocks of rows in order, with their
+# :func:`._materials.bsdf_shade`: PAIR towards the light, DRAW the sampled direction) and
+# ``lp`` (the packed parameters of its material). A layout lists its blocks of rows in order, with their
 # widths; the names are the blocks' first rows, so a block is added, widened or moved in one
 # line (``fl`` and ``sh`` start with the ray, whose rows :func:`trace_packet` reads).
 
@@ -353,10 +354,10 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
         fl[S, j], fl[S + 1, j], fl[S + 2, j] = sx, sy, sz
         fl[A, j], fl[A + 1, j], fl[A + 2, j] = ax, ay, az
         fl[B, j], fl[B + 1, j], fl[B + 2, j] = bx, by, bz
-        for s in range(2):
-            q[s, 3, j] = -(dx * ax + dy * ay + dz * az)
-            q[s, 4, j] = -(dx * bx + dy * by + dz * bz)
-            q[s, 5, j] = -(dx * sx + dy * sy + dz * sz)
+        for s in (PAIR, DRAW):
+            q[s, GIVEN, j] = -(dx * ax + dy * ay + dz * az)
+            q[s, GIVEN + 1, j] = -(dx * bx + dy * by + dz * bz)
+            q[s, GIVEN + 2, j] = -(dx * sx + dy * sy + dz * sz)
         material_params(mint, params, bind, tex, texmeta, m, u, v, lp[j])
         il[MAT, j] = mint[m, SHARE]
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
@@ -375,9 +376,9 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
                     sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
                     sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
                     sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
-                    q[0, 0, j] = ldx * ax + ldy * ay + ldz * az
-                    q[0, 1, j] = ldx * bx + ldy * by + ldz * bz
-                    q[0, 2, j] = ldx * sx + ldy * sy + ldz * sz
+                    q[PAIR, DRAWN, j] = ldx * ax + ldy * ay + ldz * az
+                    q[PAIR, DRAWN + 1, j] = ldx * bx + ldy * by + ldz * bz
+                    q[PAIR, DRAWN + 2, j] = ldx * sx + ldy * sy + ldz * sz
                     for c in range(3):
                         fl[LI + c, j] = li[c]
                     fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
@@ -397,8 +398,8 @@ def _lit(il, sh, j):
 def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel, work):
     """The BSDF at each shaded path's vertex, one batch per lobe layout (materials that share
     one shade together, each path with its own parameters; see ``SHARE``): a
-    sampled next direction (query set 1), and towards the light where the shadow ray got
-    through (query set 0: f, and for MIS the BSDF's density there)."""
+    sampled next direction (query set DRAW), and towards the light where the shadow ray got
+    through (query set PAIR: f, and for MIS the BSDF's density there)."""
     mis = opts[STRATEGY] == MIS
     lists = il[LIST:LIST + 5]
     counts = il[COUNT]
@@ -439,23 +440,24 @@ def _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j):
     # make is dropped
     lit = _lit(il, sh, j)
     lpdf, pick = fl[LPDF, j], fl[LPICK, j]
-    cos_l = max(q[0, 2, j], 0.0)
-    w = _power(pick * lpdf, q[0, 6, j]) if mis else 1.0
+    cos_l = max(q[PAIR, DRAWN + 2, j], 0.0)
+    w = _power(pick * lpdf, q[PAIR, PDF, j]) if mis else 1.0
     scale = cos_l / pick if lpdf == math.inf else w * cos_l / (pick * lpdf)
     for c in range(3):
-        light = fl[THR + c, j] * f[0, j, c] * fl[LI + c, j] * scale
+        light = fl[THR + c, j] * f[PAIR, j, c] * fl[LI + c, j] * scale
         fl[RAD + c, j] += light if lit else 0.0
-    lx, ly, lz, pdf = q[1, 0, j], q[1, 1, j], q[1, 2, j], q[1, 6, j]
+    lx, ly, lz = q[DRAW, DRAWN, j], q[DRAW, DRAWN + 1, j], q[DRAW, DRAWN + 2, j]
+    pdf = q[DRAW, PDF, j]
     if layers and il[DEPTH_, j] == 0:
         x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
         for c in range(3):
-            aov_acc[y, x, c] += f[1, j, c] if pdf != 0.0 else 0.0
+            aov_acc[y, x, c] += f[DRAW, j, c] if pdf != 0.0 else 0.0
             aov_acc[y, x, 3 + c] += fl[S + c, j]
     if pdf == 0.0:
         il[END, j] = 1
         return
     for c in range(3):
-        fl[THR + c, j] *= f[1, j, c]
+        fl[THR + c, j] *= f[DRAW, j, c]
     dx = lx * fl[A, j] + ly * fl[B, j] + lz * fl[S, j]
     dy = lx * fl[A + 1, j] + ly * fl[B + 1, j] + lz * fl[S + 1, j]
     dz = lx * fl[A + 2, j] + ly * fl[B + 2, j] + lz * fl[S + 2, j]
@@ -528,7 +530,7 @@ def _packet_space(nparams, nlobes):
     they must not depend on what the memory held): see :func:`trace_tile`."""
     return (np.zeros((FLOAT_ROWS, ROW)), np.zeros((INT_ROWS, ROW), np.int64),
             np.zeros(PACKET, np.uint64), np.zeros((SHADOW_ROWS, ROW)), np.zeros((3, ROW)),
-            np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, 7, ROW)),
+            np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, QUERY_ROWS, ROW)),
             np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)),
             np.zeros((PACKET, 2)), np.zeros(3))
 

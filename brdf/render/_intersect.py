@@ -273,8 +273,8 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
 @kernel
 def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, enters, tmax, hit,
                  any_hit, n):
-    """Trace the rays of the packet's first n lanes (``ray`` rows 0-5: origins and unit
-    directions, a lane each) through the tree.
+    """Trace the rays of the packet's first n lanes (``ray``: rows ORIGIN and DIRECTION hold
+    their origins and unit directions, a lane each) through the tree.
 
     Closest hits: ``tmax[j]`` becomes the distance of lane j's nearest hit in (0, tmax[j]) and
     ``hit[j]`` its slot (the primitive is ``slots[hit[j]]``), -1 on a miss. With ``any_hit``

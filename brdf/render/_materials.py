@@ -30,7 +30,8 @@ from numba import prange
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from ..io.merl import trilinear_pair
-from ..models._kernels import continuous, cosine_over_pdf, mixture_batch
+from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, continuous,
+                               cosine_over_pdf, mixture_batch)
 from ..sampling import sincos_turn, square_to_cosine_hemisphere
 
 MODEL, MEASURED = 0, 1
@@ -140,43 +141,46 @@ def _measured_pdf(cdf, vx, vy, vz, lx, ly, lz):
 #
 # The integrator shades its paths in batches, the paths on one material at a time: item j reads
 # its packed parameters from the row ``lp[j]`` (the material's, or a texel's where textures bind
-# them; see :func:`material_params`) and its directions from query sets ``q[s] (7, n)``, in the
-# local shading frame: v towards the viewer (rows 3-5), l towards the light (rows 0-2) and a
-# density (row 6). f is evaluated as f(wi = l, wo = v), and l is drawn given v.
+# them; see :func:`material_params`) and its directions from the query sets ``q[s]
+# (QUERY_ROWS, n)`` of :func:`brdf.models._kernels.mixture_batch`, in the local shading frame:
+# v towards the viewer (rows GIVEN), l towards the light (rows DRAWN) and a density (row PDF).
+# f is evaluated as f(wi = l, wo = v), and l is drawn given v.
 
 
 @inline_kernel
 def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
     """The passes of :func:`brdf.models._kernels.mixture_batch` for a measured table: f by
     trilinear lookup, l drawn by the tabulated distribution mixed with cosine sampling."""
-    d = q[1]
+    d = q[DRAW]
     for t in range(counts[1]):
         j = lists[1, t]
         a, b = u1[j], u2[j]
         if a < DEFENSIVE:
             x, y, z = square_to_cosine_hemisphere(a / DEFENSIVE, b)
         else:
-            x, y, z = _tab_sample(cdf, d[3, j], d[4, j], d[5, j],
+            x, y, z = _tab_sample(cdf, d[GIVEN, j], d[GIVEN + 1, j], d[GIVEN + 2, j],
                                   (a - DEFENSIVE) / (1.0 - DEFENSIVE), b)
-        d[0, j], d[1, j], d[2, j] = x, y, z
-        d[6, j] = _measured_pdf(cdf, d[3, j], d[4, j], d[5, j], x, y, z)
+        d[DRAWN, j], d[DRAWN + 1, j], d[DRAWN + 2, j] = x, y, z
+        d[PDF, j] = _measured_pdf(cdf, d[GIVEN, j], d[GIVEN + 1, j], d[GIVEN + 2, j], x, y, z)
         for c in range(3):
-            f[1, j, c] = 0.0
-    sampled = continuous(lists[1], counts[1], d[6], lists[4])
+            f[DRAW, j, c] = 0.0
+    sampled = continuous(lists[1], counts[1], d[PDF], lists[4])
+    pair = q[PAIR]
     for t in range(counts[3]):
         j = lists[3, t]
-        q[0, 6, j] = _measured_pdf(cdf, q[0, 3, j], q[0, 4, j], q[0, 5, j], q[0, 0, j],
-                                   q[0, 1, j], q[0, 2, j])
-    for s in range(2):
-        ev, nev = (lists[2], counts[2]) if s == 0 else (lists[4], sampled)
+        pair[PDF, j] = _measured_pdf(cdf, pair[GIVEN, j], pair[GIVEN + 1, j], pair[GIVEN + 2, j],
+                                     pair[DRAWN, j], pair[DRAWN + 1, j], pair[DRAWN + 2, j])
+    for s in (PAIR, DRAW):
+        ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
         for t in range(nev):
             j = ev[t]
             for c in range(3):
                 f[s, j, c] = 0.0
-            if q[s, 2, j] > 0.0 and q[s, 5, j] > 0.0:
-                trilinear_pair(grid, filled, q[s, 0, j], q[s, 1, j], q[s, 2, j], q[s, 3, j],
-                               q[s, 4, j], q[s, 5, j], f[s], j)
-    cosine_over_pdf(lists[4], sampled, d[2], d[6], f[1])
+            e = q[s]
+            if e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0:
+                trilinear_pair(grid, filled, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j],
+                               e[GIVEN, j], e[GIVEN + 1, j], e[GIVEN + 2, j], f[s], j)
+    cosine_over_pdf(lists[4], sampled, d[DRAWN + 2], d[PDF], f[DRAW])
 
 
 @inline_kernel
@@ -184,8 +188,8 @@ def bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, u1, u2, se
                chosen, lists, counts):
     """Shade a batch of paths on material m (see
     :func:`brdf.models._kernels.mixture_batch` for the query sets and lists): draw l given v
-    at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[1]``; f(l, v) at
-    ``lists[2]`` and the density of l at ``lists[3]`` in set 0. ``lists[0]`` repeats
+    at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[DRAW]``; f(l, v)
+    at ``lists[2]`` and the density of l at ``lists[3]`` in set PAIR. ``lists[0]`` repeats
     ``lists[1]``, and ``lists[4]`` is work space."""
     if mint[m, TYPE] == MEASURED:
         g = mint[m, GRID]
@@ -227,15 +231,15 @@ BATCH = 256
 @allocating_kernel
 def _driver_space(mats, m, v, k0, count, lists, counts):
     """Work space of :func:`bsdf_shade` for the directions v[k0:k0 + count] on material m: query
-    sets with v in rows 3-5, values, the uniform pair, parameter rows, selection, work and
+    sets with v in rows GIVEN, values, the uniform pair, parameter rows, selection, work and
     chosen; the lists get the items in order."""
     mint, params = mats[0], mats[3]
     p = params[mint[m, P0]:mint[m, P1]]
-    q, f, u = np.zeros((2, 7, BATCH)), np.zeros((2, BATCH, 3)), np.zeros((2, BATCH))
+    q, f, u = np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, 3)), np.zeros((2, BATCH))
     lp = np.zeros((BATCH, max(p.shape[0], 1)))
     for t in range(count):
         for a in range(3):
-            q[0, 3 + a, t] = q[1, 3 + a, t] = v[k0 + t, a]
+            q[PAIR, GIVEN + a, t] = q[DRAW, GIVEN + a, t] = v[k0 + t, a]
         lp[t, :p.shape[0]] = p
         for k in range(4):
             lists[k, t] = t
@@ -260,10 +264,11 @@ def sample_array(mats, m, v, u, l, pdf, weight):
         bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
                    chosen, lists, counts)
         for t in range(c):
-            l[k0 + t, 0], l[k0 + t, 1], l[k0 + t, 2] = q[1, 0, t], q[1, 1, t], q[1, 2, t]
-            pdf[k0 + t] = q[1, 6, t]
             for a in range(3):
-                weight[k0 + t, a] = f[1, t, a]
+                l[k0 + t, a] = q[DRAW, DRAWN + a, t]
+            pdf[k0 + t] = q[DRAW, PDF, t]
+            for a in range(3):
+                weight[k0 + t, a] = f[DRAW, t, a]
 
 
 @parallel_kernel
@@ -277,8 +282,9 @@ def pdf_array(mats, m, v, l, pdf):
         lists, counts = np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64)
         q, f, uu, lp, sel, work, chosen = _driver_space(mats, m, v, k0, c, lists, counts)
         for t in range(c):
-            q[0, 0, t], q[0, 1, t], q[0, 2, t] = l[k0 + t, 0], l[k0 + t, 1], l[k0 + t, 2]
+            for a in range(3):
+                q[PAIR, DRAWN + a, t] = l[k0 + t, a]
         counts[0] = counts[3] = c
         bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
                    chosen, lists, counts)
-        pdf[k0:k0 + c] = q[0, 6, :c]
+        pdf[k0:k0 + c] = q[PAIR, PDF, :c]
