@@ -76,30 +76,46 @@ def hit_sphere(s, ox, oy, oz, dx, dy, dz, tmax):
     return -1.0
 
 
-@kernel
-def leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist):
-    """Distances in (0, tmax) of the ray to the planar primitives in the LANES slots of block
-    ``blk`` into ``dist``: inf on a miss (and in padding), -1 for a sphere (tested apart).
+@inline_kernel
+def _plane(planes, b, s):
+    """The planar primitive in slot s of block b: normal, corner, dual vectors (3-tuples) and
+    triangle flag."""
+    return ((planes[b, PN, s], planes[b, PN + 1, s], planes[b, PN + 2, s]),
+            (planes[b, PP, s], planes[b, PP + 1, s], planes[b, PP + 2, s]),
+            (planes[b, PQ1, s], planes[b, PQ1 + 1, s], planes[b, PQ1 + 2, s]),
+            (planes[b, PQ2, s], planes[b, PQ2 + 1, s], planes[b, PQ2 + 2, s]),
+            planes[b, PTRI, s])
+
+
+@inline_kernel
+def plane_distance(plane, ox, oy, oz, dx, dy, dz, tmax):
+    """Distance in (0, tmax) of the ray to a planar primitive (:func:`_plane`), inf on a miss.
 
     One formula for parallelograms and triangles, x = p + a e1 + b e2 with a, b >= 0 and
     max(a, b) <= 1 or a + b <= 1 (the plane, then the dual-basis coordinates; for a triangle
-    they are Moller and Trumbore's barycentrics b1, b2). Free of branches, so LLVM runs it
-    across the slots in SIMD lanes, where a test of one primitive at a time mispredicted its
-    branches on random rays. A ray parallel to the plane divides by zero, and the inf or NaN
-    it gives fails the tests, as the 0 / 0 of a padding slot's zero normal does."""
+    they are Moller and Trumbore's barycentrics b1, b2). A ray parallel to the plane divides
+    by zero, and the inf or NaN it gives fails the tests, as the 0 / 0 of a padding slot's
+    zero normal does."""
+    (nx, ny, nz), (cx, cy, cz), (ax, ay, az), (bx, by, bz), tri = plane
+    px, py, pz = cx - ox, cy - oy, cz - oz
+    t = (px * nx + py * ny + pz * nz) / (dx * nx + dy * ny + dz * nz)
+    hx, hy, hz = t * dx - px, t * dy - py, t * dz - pz
+    a = hx * ax + hy * ay + hz * az
+    b = hx * bx + hy * by + hz * bz
+    inside = ((t > 0.0) & (t < tmax) & (a >= 0.0) & (b >= 0.0)
+              & (max(a, b) + tri * min(a, b) <= 1.0))
+    return t if inside else math.inf
+
+
+@kernel
+def leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist):
+    """Distances in (0, tmax) of the ray to the planar primitives in the LANES slots of block
+    ``blk`` into ``dist`` (:func:`plane_distance`): inf on a miss (and in padding), -1 for a
+    sphere (tested apart). Free of branches, so LLVM runs it across the slots in SIMD lanes,
+    where a test of one primitive at a time mispredicted its branches on random rays."""
     for j in range(LANES):
-        nx, ny, nz = planes[blk, PN, j], planes[blk, PN + 1, j], planes[blk, PN + 2, j]
-        px = planes[blk, PP, j] - ox
-        py = planes[blk, PP + 1, j] - oy
-        pz = planes[blk, PP + 2, j] - oz
-        t = (px * nx + py * ny + pz * nz) / (dx * nx + dy * ny + dz * nz)
-        hx, hy, hz = t * dx - px, t * dy - py, t * dz - pz
-        a = hx * planes[blk, PQ1, j] + hy * planes[blk, PQ1 + 1, j] + hz * planes[blk, PQ1 + 2, j]
-        b = hx * planes[blk, PQ2, j] + hy * planes[blk, PQ2 + 1, j] + hz * planes[blk, PQ2 + 2, j]
-        edge = max(a, b) + planes[blk, PTRI, j] * min(a, b)
-        inside = (t > 0.0) & (t < tmax) & (a >= 0.0) & (b >= 0.0) & (edge <= 1.0)
-        d = t if inside else math.inf
-        dist[j] = -1.0 if planes[blk, PSPH, j] != 0.0 else d
+        t = plane_distance(_plane(planes, blk, j), ox, oy, oz, dx, dy, dz, tmax)
+        dist[j] = -1.0 if planes[blk, PSPH, j] != 0.0 else t
 
 
 @kernel
@@ -116,16 +132,32 @@ def plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t):
 # --- hierarchy -------------------------------------------------------------------------------
 
 @inline_kernel
-def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
-    """Entry distance of the ray (origin o, reciprocal direction r) into box n, or inf (the
-    slab test; Williams et al. 2005, "An Efficient and Robust Ray-Box Intersection")."""
-    t0x, t1x = (box[n, 0, 0] - ox) * rx, (box[n, 1, 0] - ox) * rx
-    t0y, t1y = (box[n, 0, 1] - oy) * ry, (box[n, 1, 1] - oy) * ry
-    t0z, t1z = (box[n, 0, 2] - oz) * rz, (box[n, 1, 2] - oz) * rz
+def _corners(box, n):
+    """The lower and upper corners of box n (3-tuples)."""
+    return ((box[n, 0, 0], box[n, 0, 1], box[n, 0, 2]),
+            (box[n, 1, 0], box[n, 1, 1], box[n, 1, 2]))
+
+
+@inline_kernel
+def _slab(corners, ox, oy, oz, rx, ry, rz, tmax):
+    """Entry distance of the ray (origin o, reciprocal direction r) into a box (its
+    :func:`_corners`) within (0, tmax), and whether it enters (the slab test; Williams et al.
+    2005, "An Efficient and Robust Ray-Box Intersection")."""
+    (lox, loy, loz), (hix, hiy, hiz) = corners
+    t0x, t1x = (lox - ox) * rx, (hix - ox) * rx
+    t0y, t1y = (loy - oy) * ry, (hiy - oy) * ry
+    t0z, t1z = (loz - oz) * rz, (hiz - oz) * rz
     near = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
     far = min(min(max(t0x, t1x), max(t0y, t1y)), min(max(t0z, t1z), tmax))
     # a little slack: a ray grazing a flat box (a quad's own box) must not slip through
-    return near if near <= far * (1.0 + 1e-12) else math.inf
+    return near, near <= far * (1.0 + 1e-12)
+
+
+@inline_kernel
+def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
+    """Entry distance of the ray into box n within (0, tmax), or inf (:func:`_slab`)."""
+    near, enters = _slab(_corners(box, n), ox, oy, oz, rx, ry, rz, tmax)
+    return near if enters else math.inf
 
 
 @inline_kernel
@@ -217,32 +249,21 @@ ALONE = 32
 @kernel
 def _packet_enters(box, nd, ray, inv, tmax, enters, n):
     """How many of the first n lanes' rays enter box ``nd`` within (0, tmax[j]), each lane's
-    verdict (0 or 1) in ``enters`` (the slab test of :func:`_box_entry`). Idle lanes (tmax < 0)
-    never enter."""
-    lox, loy, loz = box[nd, 0, 0], box[nd, 0, 1], box[nd, 0, 2]
-    hix, hiy, hiz = box[nd, 1, 0], box[nd, 1, 1], box[nd, 1, 2]
+    verdict (0 or 1) in ``enters`` (:func:`_slab`). Idle lanes (tmax < 0) never enter."""
+    corners = _corners(box, nd)
     count = 0
     for j in range(n):
         ox, oy, oz = ray_at(ray, j)[:3]
-        t0x, t1x = (lox - ox) * inv[0, j], (hix - ox) * inv[0, j]
-        t0y, t1y = (loy - oy) * inv[1, j], (hiy - oy) * inv[1, j]
-        t0z, t1z = (loz - oz) * inv[2, j], (hiz - oz) * inv[2, j]
-        near = max(max(min(t0x, t1x), min(t0y, t1y)), max(min(t0z, t1z), 0.0))
-        far = min(min(max(t0x, t1x), max(t0y, t1y)), min(max(t0z, t1z), tmax[j]))
-        enters[j] = near <= far * (1.0 + 1e-12)
+        enters[j] = _slab(corners, ox, oy, oz, inv[0, j], inv[1, j], inv[2, j], tmax[j])[1]
         count += enters[j]
     return count
 
 
 @kernel
 def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
-    """Test the primitive in ``slot`` against the first n lanes: where it lies within
-    (0, tmax[j]), tmax[j] becomes its distance and hit[j] the slot.
-
-    Planar primitives share one formula, x = p + a e1 + b e2 with a, b >= 0 and max(a, b) <= 1
-    (parallelogram) or a + b <= 1 (triangle: Moller and Trumbore's barycentrics): the plane,
-    then the dual-basis coordinates. A ray parallel to the plane divides by zero, and the inf
-    or NaN it gives fails the tests."""
+    """Test the primitive in ``slot`` against the first n lanes (:func:`hit_sphere`,
+    :func:`plane_distance`): where it lies within (0, tmax[j]), tmax[j] becomes its distance
+    and hit[j] the slot."""
     b, s = slot // LANES, slot % LANES
     if planes[b, PSPH, s] != 0.0:
         c = sph[prim[slots[slot], 1]]
@@ -252,22 +273,13 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
             if t > 0.0:
                 tmax[j], hit[j] = t, slot
         return
-    nx, ny, nz = planes[b, PN, s], planes[b, PN + 1, s], planes[b, PN + 2, s]
-    cx, cy, cz = planes[b, PP, s], planes[b, PP + 1, s], planes[b, PP + 2, s]
-    ax, ay, az = planes[b, PQ1, s], planes[b, PQ1 + 1, s], planes[b, PQ1 + 2, s]
-    bx, by, bz = planes[b, PQ2, s], planes[b, PQ2 + 1, s], planes[b, PQ2 + 2, s]
-    tri = planes[b, PTRI, s]
+    plane = _plane(planes, b, s)
     for j in range(n):
         ox, oy, oz, dx, dy, dz = ray_at(ray, j)
-        px, py, pz = cx - ox, cy - oy, cz - oz
-        t = (px * nx + py * ny + pz * nz) / (dx * nx + dy * ny + dz * nz)
-        hx, hy, hz = t * dx - px, t * dy - py, t * dz - pz
-        u = hx * ax + hy * ay + hz * az
-        v = hx * bx + hy * by + hz * bz
-        inside = ((t > 0.0) & (t < tmax[j]) & (u >= 0.0) & (v >= 0.0)
-                  & (max(u, v) + tri * min(u, v) <= 1.0))
-        tmax[j] = t if inside else tmax[j]
-        hit[j] = slot if inside else hit[j]
+        t = plane_distance(plane, ox, oy, oz, dx, dy, dz, tmax[j])
+        nearer = t < tmax[j]
+        tmax[j] = t if nearer else tmax[j]
+        hit[j] = slot if nearer else hit[j]
 
 
 @kernel
