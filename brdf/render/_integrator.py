@@ -11,6 +11,27 @@ together again. A finished path's lane takes the tile's next (pixel, sample) pai
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
 bit whatever the number of threads.
+
+Changing this code
+------------------
+Free to change: the layouts of the work arrays (``FLOAT_LAYOUT``, ``INT_LAYOUT``,
+``SHADOW_LAYOUT``: a block is added, widened or moved in its one line), PACKET, ROW, the tile
+size and the split into passes, how kernels are grouped and what they are called with, and
+anything else that moves no arithmetic: such a change must leave every image bit-identical.
+What must stay bit-identical across thread counts (and is tested so): an image for a given
+seed. It holds as long as a path's numbers depend only on its own (pixel, sample) stream, a
+tile's paths run in an order fixed by the tile, and a pixel's sums are added by one thread
+in that order; never draw numbers from a stream shared by lanes or threads, nor add into a
+pixel from another tile. A change of the estimator (the order of operations in a formula,
+what a stream's numbers are spent on) moves the bits; its commit says why.
+
+How to check: ``tests/render/test_render_digest.py`` renders a small scene with one thread and
+two and compares the bytes with each other, with a digest stored for this numba, llvmlite and
+machine, and with a committed reference image (to rounding, on a compiler without a stored
+digest). The kernels are compiled with fast-math contraction and reassociation, and a cold
+compile may round some lobes' formulas differently from kernels loaded from the cache (seen
+with GGX and measured tables): compare renders of a change with all kernels cached on both
+sides. ``benchmarks/bench_render.py`` times the Cornell box against Mitsuba 3.
 """
 
 import math
