@@ -57,8 +57,8 @@ def compare(data, specs, **options):
 
 def export(model, format, path=None, force=False):
     """Write a model or fit (result, report, or report path) as a Mitsuba 3 BSDF or a glTF 2.0
-    material, stating what is exact and what approximate; see :func:`brdf.fitting.export`."""
-    from .fitting import export as _export
+    material, stating what is exact and what approximate; see `brdf.io.export`."""
+    from .io.export import export as _export
     return _export(model, format, path, force)
 
 

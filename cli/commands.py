@@ -273,7 +273,7 @@ def fit(args, out):
     target = export_path(args)
     refuse_existing(args, args.output, args.chain, args.corner, target)
     if target:  # a model without an equivalent is refused before the fit, not after
-        from brdf.fitting.export import check_families
+        from brdf.io.export import check_families
         check_families(args.spec, args.export)
     if not args.mcmc and (args.walkers or args.chain or args.corner or args.moves):
         raise InputError("--walkers, --moves, --chain and --corner need --mcmc")

@@ -1,7 +1,7 @@
 """``brdf-fit export`` and the ``--export`` option of ``brdf-fit fit``: a fitted model as a
 Mitsuba 3 BSDF or a glTF 2.0 material (the conversion is :func:`brdf.export`)."""
 
-#: Formats and their file extensions, as in brdf.fitting.export.FORMATS (not imported here:
+#: Formats and their file extensions, as in brdf.io.export.FORMATS (not imported here:
 #: --help stays fast; a test keeps the two equal).
 FORMATS = {"mitsuba": ".xml", "gltf": ".gltf"}
 FORMAT_HELP = ("mitsuba (a Mitsuba 3 scene holding <bsdf id=\"material\">) or gltf (a glTF 2.0 "

@@ -138,7 +138,7 @@ def export(obj, format, path=None, force=False):
         For an unknown format, or a model without an equivalent in it (the message says which
         models export).
     """
-    from ..io import atomic_output
+    from . import atomic_output
     model = _model_of(obj)
     if format not in FORMATS:
         raise InputError(f"unknown export format {format!r}; use one of {', '.join(FORMATS)}")
@@ -162,7 +162,7 @@ def _model_of(obj):
     if hasattr(obj, "model"):
         return obj.model
     if isinstance(obj, (str, Path)) and str(obj).lower().endswith(".json"):
-        from .report import load_report
+        from ..fitting.report import load_report
         return load_report(obj).model
     if isinstance(obj, str):
         return parse(obj)

@@ -12,7 +12,7 @@ import pytest
 
 import brdf
 from brdf.errors import BRDFError, InputError, OutputError
-from brdf.fitting.export import EXPORTABLE, FORMATS, gltf_eval, relative_deviation
+from brdf.io.export import EXPORTABLE, FORMATS, gltf_eval, relative_deviation
 from lobes import upper_directions
 from mitsuba_oracle import load_mitsuba, mitsuba_eval
 from test_cli import assert_one_error_line, run
