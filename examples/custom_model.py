@@ -1,11 +1,10 @@
-"""Write and register your own BRDF family: the Oren-Nayar rough-diffuse model.
+"""Write and register your own BRDF family: Minnaert's limb-darkening law.
 
 Run: ``python examples/custom_model.py``
 
-Oren & Nayar 1994 ("Generalization of Lambert's Reflectance Model", SIGGRAPH, eq. 30) model a
-rough diffuse surface (clay, plaster, the Moon) as V-cavities of Lambertian facets whose slopes
-have standard deviation ``sigma``; their "qualitative" model keeps the main effect, a surface
-that grows brighter towards the light at grazing angles. It is not in the library, so this
+Minnaert 1941 ("The reciprocity principle in lunar photometry", ApJ 93, 403, eq. 2) fits the
+brightness of the Moon and planets by I = I_0 cos^k(i) cos^(k-1)(e): a reciprocal law that is
+Lambert's for k = 1 and darkens towards the limb for k > 1. It is not in the library, so this
 script writes it as a :class:`brdf.CustomModel` (parameters declared like a built-in family, one
 vectorised numpy formula), registers it, checks it, fits it to a virtual gonioreflectometer
 measurement and prints the recovered parameters next to the truth.
@@ -13,7 +12,7 @@ measurement and prints the recovered parameters next to the truth.
 From the command line, the same file registers the model for ``brdf-fit``::
 
     brdf-fit --plugin examples/custom_model.py models
-    brdf-fit --plugin examples/custom_model.py check "oren-nayar(albedo=0.8, sigma=0.5)"
+    brdf-fit --plugin examples/custom_model.py check "minnaert(albedo=0.8, k=1.5)"
 """
 
 import math
@@ -24,52 +23,45 @@ import numpy as np
 import brdf
 from brdf.models import Param
 
-INV_PI = 1.0 / math.pi
-TRUTH = "oren-nayar(albedo=[0.62,0.48,0.33], sigma=0.45)"
+TRUTH = "minnaert(albedo=[0.62,0.48,0.33], k=1.6)"
 
 
 @brdf.register_model
-class OrenNayar(brdf.CustomModel):
-    """Oren-Nayar rough diffuse reflection, qualitative model.
+class Minnaert(brdf.CustomModel):
+    """Minnaert's law as a BRDF, normalised to albedo ``albedo`` at normal incidence.
 
-    f = albedo / pi (A + B max(0, cos(phi_i - phi_o)) sin(alpha) tan(beta)), with
-    alpha = max(theta_i, theta_o), beta = min(theta_i, theta_o),
-    A = 1 - 0.5 sigma^2 / (sigma^2 + 0.33) and B = 0.45 sigma^2 / (sigma^2 + 0.09).
-    sigma = 0 is Lambert's law.
+    f = albedo (k + 1) / (2 pi) (cos(theta_i) cos(theta_o))^(k - 1): the radiance
+    I_0 cos^k(i) cos^(k-1)(e) of Minnaert 1941 over the irradiance cos(i), with the constant
+    that makes the albedo at normal incidence equal ``albedo`` (the integral of
+    cos^k(theta_o) over the hemisphere is 2 pi / (k + 1)). The albedo at theta_i is
+    albedo cos^(k-1)(theta_i), at most ``albedo`` for k >= 1. k = 1 is Lambert's law.
     """
 
-    name = "oren-nayar"
-    aliases = ("oren_nayar",)
-    summary = "rough diffuse (V-cavities of Lambertian facets), qualitative model"
-    citation = ("Oren & Nayar 1994, Generalization of Lambert's Reflectance Model, SIGGRAPH, "
-                "eq. 30")
+    name = "minnaert"
+    aliases = ("minnaert-1941",)
+    summary = "limb darkening, f ~ (cos theta_i cos theta_o)^(k - 1)"
+    citation = "Minnaert 1941, The reciprocity principle in lunar photometry, ApJ 93, 403, eq. 2"
     PARAMS = (
         Param("albedo", 0.5, (0.0, 1.0), per_channel=True, aliases=("rho",),
-              doc="albedo of the Lambertian facets"),
-        Param("sigma", 0.3, (0.0, 0.5 * math.pi), units="rad", fit_bounds=(0.0, 1.0),
-              doc="standard deviation of the facet slope angle"),
+              doc="albedo at normal incidence"),
+        Param("k", 1.5, (1.0, 4.0), fit_bounds=(1.0, 3.0),
+              doc="Minnaert exponent (1: Lambert; larger: darker towards the limb)"),
     )
     reciprocal = True        # symmetric in wi and wo (brdf.check tests it)
-    energy_conserving = True  # albedo <= 1 for albedo <= 1 (brdf.check tests it)
-    isotropic = True         # depends on the azimuths through their difference only
+    energy_conserving = True  # albedo cos^(k-1)(theta_i) <= albedo for k >= 1 (tested too)
+    isotropic = True         # no azimuth at all
 
     def formula(self, wi, wo):
-        s2 = self["sigma"] ** 2
-        a = 1.0 - 0.5 * s2 / (s2 + 0.33)  # eq. 30
-        b = 0.45 * s2 / (s2 + 0.09)
-        # max(0, cos(phi_i - phi_o)) sin(alpha) tan(beta) without angles: sin(theta_i)
-        # sin(theta_o) cos(phi_i - phi_o) is the dot product of the directions' xy parts, and
-        # sin(alpha) tan(beta) / (sin(theta_i) sin(theta_o)) = 1 / cos(beta), the larger cosine
-        g = np.maximum(0.0, wi[:, 0] * wo[:, 0] + wi[:, 1] * wo[:, 1]) \
-            / np.maximum(wi[:, 2], wo[:, 2])
-        # albedo times 1/pi, as the Lambert kernel computes it: sigma = 0 gives Lambert exactly
-        return self["albedo"] * INV_PI * (a + b * g)[:, None]
+        k = self["k"]
+        # Minnaert 1941, eq. 2, divided by the irradiance cos(i) and normalised (see above)
+        return self["albedo"] * ((k + 1.0) / (2.0 * math.pi)
+                                 * (wi[:, 2] * wo[:, 2]) ** (k - 1.0))[:, None]
 
 
 def main():
     start = time.perf_counter()
     model = brdf.parse(TRUTH)
-    print(f"model: {model}   ({OrenNayar.citation})")
+    print(f"model: {model}   ({Minnaert.citation})")
 
     report = brdf.check(model, pairs=20_000, theta_steps=30)
     for c in report.checks:
@@ -78,12 +70,12 @@ def main():
     print("  albedo at theta_i = 0, 60, 85 deg (red):",
           np.array2string(model.albedo(wi)[:, 0], precision=4))
 
-    # a gonioreflectometer scan with 1 % noise, then fits of Lambert and Oren-Nayar
+    # a gonioreflectometer scan with 1 % noise, then fits of Lambert and Minnaert
     table = brdf.measure(model, "grid:10,30", noise="relative:0.01", seed=1)
     lambert = brdf.fit(table, "lambert")
-    fit = brdf.fit(table, "oren-nayar")
+    fit = brdf.fit(table, "minnaert")
     print(f"measured {len(table.values)} samples; cosine-l2 loss: lambert "
-          f"{lambert.loss:.3g}, oren-nayar {fit.loss:.3g} ({fit.status})")
+          f"{lambert.loss:.3g}, minnaert {fit.loss:.3g} ({fit.status})")
     truth = model.params
     print(f"  {'parameter':22s} {'truth':>8s} {'fitted':>8s}")
     for name, value in fit.params.items():

@@ -77,6 +77,11 @@ CASES = {
         "ashikhmin-shirley(rd=[0.6,0.4,0.2], rs=0.1, nu=10, nv=500)",
         "ashikhmin-shirley(rd=0, rs=0.9, nu=200, nv=20)",
     ],
+    "oren-nayar": [
+        "oren-nayar(albedo=0.5, sigma=0)",
+        "oren-nayar(albedo=0.8, sigma=0.3)",
+        "oren-nayar(albedo=[0.7,0.5,0.3], sigma=1.2)",
+    ],
 }
 
 SUMS = [

@@ -1,8 +1,8 @@
 """The table of built-in lobe families: the one place a compiled family is added.
 
 Each row is a family's kind and its dispatch number (``kinds`` arrays hold it; a new family
-takes the next number), the module of ``brdf.models`` that holds its class and its scalar kernels (the hooks listed in
-``_kernels``), and, for a module that serves several families, the name of the module constant
+takes the next number), the module of ``brdf.models`` that holds its class and its scalar
+kernels (the hooks listed in ``_kernels``), and, for a module that serves several families, the name of the module constant
 passed to its hooks as the variant. ``_kernels`` generates every dispatcher from the table (a
 missing optional hook falls back the same way for every family), ``brdf.models`` imports each
 module (which registers its classes), and the cache stamp of ``brdf._jit`` covers this file.
@@ -24,6 +24,7 @@ FAMILIES = (
     ("WARD",                5,    "ward",              None),
     ("LAFORTUNE",           8,    "lafortune",         None),
     ("ASHIKHMIN_SHIRLEY",   9,    "ashikhmin_shirley", None),
+    ("OREN_NAYAR",          10,   "oren_nayar",        None),
 )
 
 #: Kind name -> dispatch number (also module constants: ``_kinds.GGX``).

@@ -2,7 +2,7 @@
 sums with built-in lobes (against separate evaluations and against the kernels' own mixture),
 sampling (chi-square), the albedo cubature against a brute-force integral, the physical checks
 (which must catch broken families), fitting and MCMC, rendering, export, the CLI, and the
-Oren-Nayar family of examples/custom_model.py against the paper's formula."""
+Minnaert family of examples/custom_model.py against the paper's formula."""
 
 import json
 import math
@@ -104,7 +104,7 @@ FAMILIES = (Tinted, Uniform, OneSided, Bright, Leaky, Anisotropic)
 def _load_example():
     """The example as ``brdf-fit --plugin`` loads it (the same module name each time, so that
     loading it again replaces its family instead of clashing)."""
-    return brdf.models.load_plugin(EXAMPLE)  # registers oren-nayar
+    return brdf.models.load_plugin(EXAMPLE)  # registers minnaert
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -115,13 +115,13 @@ def families():
         brdf.register_model(cls)
     example = _load_example()
     yield example
-    for cls in FAMILIES + (example.OrenNayar,):
+    for cls in FAMILIES + (example.Minnaert,):
         brdf.unregister_model(cls.name)
 
 
 @pytest.fixture(scope="module")
 def on(families):
-    return families.OrenNayar
+    return families.Minnaert
 
 
 # --- declarations and registration ------------------------------------------------------------
@@ -129,7 +129,7 @@ def on(families):
 @pytest.mark.parametrize("spec", [
     "test-tinted",
     "test-tinted(k=[0.2,0.3,0.4], t=1.5, mode=squared)",
-    "oren-nayar(albedo=[0.6,0.5,0.4], sigma=0.3) + lambert(albedo=0.2)",
+    "minnaert(albedo=[0.6,0.5,0.4], k=1.3) + lambert(albedo=0.2)",
     "ggx(alpha=0.2, ks=0.3) + test-tinted(k=0.1) + test_tinted(t=0.25)",
 ])
 def test_specs_and_json_round_trip(spec):
@@ -229,7 +229,7 @@ def test_a_formula_of_the_wrong_shape_is_a_one_line_error():
 
 # --- sums with built-in lobes -----------------------------------------------------------------
 
-SUMS = ["oren-nayar(albedo=[0.6,0.5,0.4], sigma=0.5) + ggx(alpha=0.3, ks=0.4)",
+SUMS = ["minnaert(albedo=[0.6,0.5,0.4], k=1.5) + ggx(alpha=0.3, ks=0.4)",
         "lambert(albedo=0.2) + test-tinted(k=[0.3,0.2,0.1]) + ggx(alpha=0.1, ks=0.2)",
         "test-uniform(k=0.3) + mirror(reflectance=0.5)"]
 
@@ -268,7 +268,7 @@ def test_the_python_mixture_follows_the_kernels_rule(spec):
 @pytest.mark.parametrize("spec, theta", [
     ("test-tinted(k=0.5, t=1)", 30.0),              # the default cosine sampler
     ("test-uniform", 60.0),                          # a family's own sampler
-    ("oren-nayar(sigma=0.4) + ggx(alpha=0.2, ks=0.6)", 50.0),
+    ("minnaert(k=1.4) + ggx(alpha=0.2, ks=0.6)", 50.0),
     ("test-uniform(k=0.2) + mirror(reflectance=0.7)", 20.0),
 ])
 def test_sampling_follows_the_pdf(spec, theta):
@@ -281,7 +281,7 @@ def test_sampling_follows_the_pdf(spec, theta):
 
 
 def test_sample_weights_are_f_cos_over_pdf():
-    m = brdf.parse("oren-nayar(albedo=[0.6,0.5,0.4], sigma=0.4) + ggx(alpha=0.3, ks=0.3)")
+    m = brdf.parse("minnaert(albedo=[0.6,0.5,0.4], k=1.4) + ggx(alpha=0.3, ks=0.3)")
     wi = np.broadcast_to(incident(35.0), (1000, 3))
     wo, pdf, weight = m.sample_weighted(wi, np.random.default_rng(5).random((1000, 2)))
     ok = pdf > 0.0
@@ -299,7 +299,7 @@ def test_the_numpy_cosine_warp_is_the_kernels_warp():
 
 # --- albedo -----------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("spec", ["oren-nayar(albedo=0.8, sigma=0.6)", "test-tinted(t=2)",
+@pytest.mark.parametrize("spec", ["minnaert(albedo=0.8, k=1.6)", "test-tinted(t=2)",
                                   "test-uniform(k=0.9) + ggx(alpha=0.25, ks=0.5)"])
 @pytest.mark.parametrize("theta", [0.0, 45.0, 80.0])
 def test_albedo_matches_a_brute_force_integral(spec, theta):
@@ -314,7 +314,7 @@ def test_albedo_matches_a_brute_force_integral(spec, theta):
 
 
 def test_a_tighter_tolerance_spends_more_and_errs_less():
-    m = brdf.parse("oren-nayar(albedo=1, sigma=1)")
+    m = brdf.parse("minnaert(albedo=1, k=2)")
     wi = np.stack([incident(t) for t in (10.0, 50.0, 70.0)])
     loose = m.albedo(wi, tol=1e-3, return_error=True)[1]
     tight = m.albedo(wi, tol=1e-7, return_error=True)[1]
@@ -324,8 +324,8 @@ def test_a_tighter_tolerance_spends_more_and_errs_less():
 # --- the physical checks ----------------------------------------------------------------------
 
 def test_checks_pass_on_good_families_and_sums(on):
-    for spec in ("oren-nayar(albedo=[0.9,0.6,0.3], sigma=0.7)",
-                 "oren-nayar(albedo=0.6) + ggx(alpha=0.3, ks=0.3)"):
+    for spec in ("minnaert(albedo=[0.9,0.6,0.3], k=1.7)",
+                 "minnaert(albedo=0.6) + ggx(alpha=0.3, ks=0.3)"):
         report = brdf.check(spec, pairs=20_000, theta_steps=20)
         assert report.passed, str(report)
     assert brdf.check("test-anisotropic", pairs=2000).declared["is_anisotropic"] is True
@@ -343,10 +343,10 @@ def test_checks_catch_broken_families():
 # --- fitting, MCMC ----------------------------------------------------------------------------
 
 def test_fit_recovers_a_custom_lobe_in_a_sum(on):
-    truth = brdf.parse("oren-nayar(albedo=[0.55,0.4,0.3], sigma=0.5) + "
+    truth = brdf.parse("minnaert(albedo=[0.55,0.4,0.3], k=1.5) + "
                        "ggx(alpha=0.25, ks=[0.3,0.3,0.3])")
     table = brdf.measure(truth, "grid:10,30")
-    result = brdf.fit(table, "oren-nayar(sigma=0.2) + ggx(alpha=0.4, ks=0.5)")
+    result = brdf.fit(table, "minnaert(k=1.2) + ggx(alpha=0.4, ks=0.5)")
     assert result.converged
     for name, value in truth.params.items():
         assert result.params[name] == pytest.approx(value, rel=1e-4, abs=1e-6), name
@@ -377,29 +377,29 @@ def test_mixed_problem_gradient_and_metrics_agree_with_the_kernels():
 
 
 def test_mcmc_samples_a_custom_family(on):
-    table = brdf.measure("oren-nayar(albedo=0.5, sigma=0.4)", "random:300", "additive:0.002",
+    table = brdf.measure("minnaert(albedo=0.5, k=1.4)", "random:300", "additive:0.002",
                          seed=3)
-    post = brdf.mcmc(table, "oren-nayar", seed=1, max_steps=200, walkers=16)
-    albedo = post.percentiles["oren-nayar.albedo"]
-    assert post.names[:2] == ("oren-nayar.albedo", "oren-nayar.sigma")
+    post = brdf.mcmc(table, "minnaert", seed=1, max_steps=200, walkers=16)
+    albedo = post.percentiles["minnaert.albedo"]
+    assert post.names[:2] == ("minnaert.albedo", "minnaert.k")
     assert albedo["2.5"] < 0.5 < albedo["97.5"] and albedo["97.5"] - albedo["2.5"] < 0.05
 
 
 def test_batch_workers_are_told_the_plugins(tmp_path, on):
     from brdf.models.custom import plugin_sources
     assert plugin_sources() == [__name__, str(EXAMPLE)]  # a module name, a plugin file
-    brdf.write(brdf.measure("oren-nayar(albedo=0.4, sigma=0.3)", "grid:15,45"),
+    brdf.write(brdf.measure("minnaert(albedo=0.4, k=1.3)", "grid:15,45"),
                tmp_path / "on.csv")
-    result = brdf.batch([tmp_path / "on.csv"], "oren-nayar", tmp_path / "out", jobs=1)
+    result = brdf.batch([tmp_path / "on.csv"], "minnaert", tmp_path / "out", jobs=1)
     assert [r["status"] for r in result.rows] == ["fitted"]
-    assert result.rows[0]["oren-nayar.sigma"] == pytest.approx(0.3, rel=1e-4)
+    assert result.rows[0]["minnaert.k"] == pytest.approx(1.3, rel=1e-4)
 
 
 # --- rendering, export, the command line ------------------------------------------------------
 
 def test_render_tabulates_custom_materials(on):
     from brdf import render
-    a = render.render(render.builtin("sphere", "oren-nayar(albedo=[0.6,0.5,0.4], sigma=0)"),
+    a = render.render(render.builtin("sphere", "minnaert(albedo=[0.6,0.5,0.4], k=1)"),
                       spp=32, size=16, seed=2)
     b = render.render(render.builtin("sphere", "lambert(albedo=[0.6,0.5,0.4])"),
                       spp=32, size=16, seed=3)
@@ -412,8 +412,8 @@ def test_render_tabulates_custom_materials(on):
 @pytest.mark.parametrize("format", ["mitsuba", "gltf"])
 def test_export_of_a_custom_lobe_is_a_one_line_error(on, format):
     with pytest.raises(InputError) as info:
-        brdf.export("oren-nayar + ggx", format)
-    assert "custom lobe(s) oren-nayar" in str(info.value) and "merl" in str(info.value)
+        brdf.export("minnaert + ggx", format)
+    assert "custom lobe(s) minnaert" in str(info.value) and "merl" in str(info.value)
     assert "\n" not in str(info.value)
 
 
@@ -421,41 +421,43 @@ def test_the_cli_loads_plugins(capsys):
     from brdf_cli.main import main
     assert main(["--plugin", str(EXAMPLE), "models"]) == 0
     out = capsys.readouterr().out
-    assert "oren-nayar" in out and "Oren & Nayar 1994" in out
-    assert main(["check", "--plugin", str(EXAMPLE), "--json", "oren-nayar(sigma=0.2)"]) == 0
+    assert "minnaert" in out and "Minnaert 1941" in out
+    assert main(["check", "--plugin", str(EXAMPLE), "--json", "minnaert(k=1.2)"]) == 0
     assert json.loads(capsys.readouterr().out)["passed"] is True
     assert main(["--plugin", "no/such/plugin.py", "models"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "plugin no/such/plugin.py: no such file" in err
 
 
-# --- the example's Oren-Nayar family ----------------------------------------------------------
+# --- the example's Minnaert family ------------------------------------------------------------
 
-def _paper(albedo, sigma, ti, pi_, to, po):
-    """Oren & Nayar 1994 eq. 30 evaluated from the angles (degrees), term by term."""
-    ti, pi_, to, po = (math.radians(v) for v in (ti, pi_, to, po))
-    a = 1.0 - 0.5 * sigma ** 2 / (sigma ** 2 + 0.33)
-    b = 0.45 * sigma ** 2 / (sigma ** 2 + 0.09)
-    alpha, beta = max(ti, to), min(ti, to)
-    return albedo / math.pi * (a + b * max(0.0, math.cos(pi_ - po)) * math.sin(alpha)
-                               * math.tan(beta))
-
-
-@pytest.mark.parametrize("angles", [(30, 0, 60, 0), (60, 0, 30, 180), (45, 10, 45, 100),
-                                    (80, 0, 20, 30), (0, 0, 50, 90), (70, 200, 75, 10),
-                                    (5, 45, 85, 60)])
-def test_oren_nayar_is_the_papers_formula(on, angles):
-    m = on(albedo=0.7, sigma=0.6)
+@pytest.mark.parametrize("angles", [(30, 0, 60, 0), (60, 0, 30, 180), (0, 0, 50, 90),
+                                    (80, 0, 20, 30), (5, 45, 85, 60)])
+@pytest.mark.parametrize("k", [1.0, 1.4, 2.5])
+def test_minnaert_is_the_papers_law(on, angles, k):
+    """Minnaert 1941, eq. 2: radiance I_0 cos^k(i) cos^(k-1)(e) per unit irradiance cos(i),
+    normalised to albedo 0.7 at normal incidence by (k + 1) / (2 pi)."""
     ti, pi_, to, po = angles
-    f = m.eval(incident(ti, pi_), incident(to, po))[0]
-    assert f == pytest.approx(_paper(0.7, 0.6, *angles), rel=1e-12)
+    f = on(albedo=0.7, k=k).eval(incident(ti, pi_), incident(to, po))[0]
+    ci, co = math.cos(math.radians(ti)), math.cos(math.radians(to))
+    law = ci ** k * co ** (k - 1.0) / ci
+    assert f == pytest.approx(0.7 * (k + 1.0) / (2.0 * math.pi) * law, rel=1e-12)
 
 
-def test_oren_nayar_at_sigma_zero_is_lambert_and_is_reciprocal(on):
+def test_minnaert_at_k_one_is_lambert_and_is_reciprocal(on):
     rng = np.random.default_rng(7)
     wi, wo = upper_directions(rng, 2000), upper_directions(rng, 2000)
     albedo = [0.8, 0.5, 0.2]
-    assert np.array_equal(on(albedo=albedo, sigma=0.0).eval(wi, wo),
-                          brdf.models.Lambert(albedo=albedo).eval(wi, wo))
-    m = on(albedo=albedo, sigma=0.9)
+    assert np.allclose(on(albedo=albedo, k=1.0).eval(wi, wo),
+                       brdf.models.Lambert(albedo=albedo).eval(wi, wo), rtol=1e-15, atol=0)
+    m = on(albedo=albedo, k=2.2)
     assert np.array_equal(m.eval(wi, wo), m.eval(wo, wi))
+
+
+@pytest.mark.parametrize("theta", [0.0, 40.0, 75.0, 88.0])
+def test_minnaert_albedo_is_its_closed_form(on, theta):
+    """The albedo at theta_i is albedo cos^(k-1)(theta_i): the normalisation checked, to the
+    cubature's absolute tolerance (1e-5)."""
+    m = on(albedo=0.9, k=1.8)
+    a = m.albedo(incident(theta, 15.0))[0]
+    assert a == pytest.approx(0.9 * math.cos(math.radians(theta)) ** 0.8, abs=1e-5)
