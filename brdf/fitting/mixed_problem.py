@@ -85,7 +85,9 @@ class MixedProblem(Problem):
         """Per-channel contributions ``(K, C)`` to the loss of each row of ``X``."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         t = terms or self.terms
-        return np.array([self.score(self.model_values(x), t) for x in X])
+        refused = self._refused(self.packed(X)) if self._admissible else np.zeros(len(X), bool)
+        return np.array([np.full(self.channels, np.inf) if no else
+                         self.score(self.model_values(x), t) for x, no in zip(X, refused)])
 
     def loss_and_gradient(self, x, terms=None):
         """``(loss, gradient)`` at ``x``; the gradient by central differences."""

@@ -216,6 +216,9 @@ class Problem:
         compiled = self.base.compile(nch)
         self._kinds, self._offsets, self._packed = compiled.kinds, compiled.offsets, compiled.params
         self._slots = compiled.slots
+        self._admissible = [(type(lobe).admissible, a, b) for lobe, a, b in
+                            zip(self.base.lobes, self._offsets[:-1], self._offsets[1:])
+                            if type(lobe).admissible is not None]
         self.free = tuple(self._free_parameters())
         self.names = tuple(p.name for p in self.free)
         self.lower = np.array([p.to_x(p.lower) for p in self.free])
@@ -394,6 +397,13 @@ class Problem:
         return self.lower + (self.upper - self.lower) * rng.random((n, len(self.free)))
 
     # -- losses ----------------------------------------------------------------------------------
+    def _refused(self, P):
+        """Rows of packed parameters ``P`` (K, n) holding values a lobe's family refuses though
+        they lie in the fit box (a Lafortune lobe whose peak overflows): no model exists there,
+        so their loss is inf (and the posterior's density 0)."""
+        return np.array([not all(ok(p[a:b], self.channels) for ok, a, b in self._admissible)
+                         for p in P], dtype=bool)
+
     def channel_losses(self, X, terms=None):
         """Per-channel contributions ``(K, C)`` to the loss of each row of ``X`` (they sum to
         the loss), from one compiled pass over the samples; the lobes whose parameters are those
@@ -407,7 +417,10 @@ class Problem:
         out = np.zeros((blocks, len(P), self.channels))
         _loss_sums(self._kinds, self._offsets, P, lobes, self.channels, s.wi, s.wo, t.scale,
                    t.target, t.weight, t.offset, BLOCK, out)
-        return out.sum(axis=0) / t.norm
+        losses = out.sum(axis=0) / t.norm
+        if self._admissible:
+            losses[self._refused(P)] = np.inf
+        return losses
 
     def loss(self, x):
         """The loss at ``x``."""
@@ -453,6 +466,8 @@ class Problem:
         compiled pass over the samples; ``terms`` scores another metric than the loss."""
         x = np.asarray(x, dtype=float)
         params = self.packed(x)[0]
+        if self._admissible and self._refused(params[None])[0]:
+            return math.inf, np.zeros(len(x))
         s, t = self.samples, terms or self.terms
         block = self._gradient_block
         blocks = -(-len(s.wi) // block)

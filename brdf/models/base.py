@@ -199,6 +199,10 @@ class Component:
         _ = self.channels  # per-channel parameters, nested ones included, must agree
         self._check()
 
+    #: ``admissible(q, nch) -> bool`` for a family that refuses some values inside its
+    #: parameters' bounds (see :meth:`_check`), given its packed block ``q``; None otherwise.
+    admissible = None
+
     def _check(self):
         """Cross-parameter validation; families override it (e.g. channel counts)."""
 

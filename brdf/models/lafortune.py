@@ -69,14 +69,28 @@ class Lafortune(Model):
         return bool((self["cx"] != self["cy"]).any())
 
     def _check(self):
-        # the peak value is max(|Cx|, |Cy|, |Cz|)^n (wi = wo along that axis); past double
-        # precision the lobe would evaluate to inf, which no fit or render can use
-        peak = np.max(np.broadcast_arrays(*(np.abs(self[k]) for k in ("cx", "cy", "cz"))), axis=0)
-        with np.errstate(divide="ignore"):
-            log_peak = np.asarray(self["n"]) * np.log(peak)
+        log_peak = _log_peak(self["cx"], self["cy"], self["cz"], self["n"])
         if np.any(log_peak > MAX_LOG_PEAK):
             raise ParameterError(f"{self.name}: max(|cx|, |cy|, |cz|)^n = e^{np.max(log_peak):.0f} "
                                  f"overflows double precision; need it below e^{MAX_LOG_PEAK:.0f}")
+
+
+    @staticmethod
+    def admissible(q, nch):
+        """Whether the packed block ``q`` (cx, cy, cz, n per channel) is a lobe ``_check``
+        accepts: the fitter treats other points of its box as infinitely bad."""
+        q = np.asarray(q)
+        return bool(np.all(_log_peak(q[:nch], q[nch:2 * nch], q[2 * nch:3 * nch],
+                                     q[3 * nch:4 * nch]) <= MAX_LOG_PEAK))
+
+
+def _log_peak(cx, cy, cz, n):
+    """log of the peak value max(|Cx|, |Cy|, |Cz|)^n (wi = wo along that axis): past double
+    precision the lobe would evaluate to inf, which no fit or render can use."""
+    peak = np.max(np.broadcast_arrays(*(np.abs(np.asarray(c, float)) for c in (cx, cy, cz))),
+                  axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.asarray(n, float) * np.log(peak)
 
 
 # --- kernels (layout: cx[C], cy[C], cz[C], n[C]) ---------------------------------------------

@@ -253,3 +253,22 @@ def test_a_bad_starts_option_is_one_line_exit_2(value, tmp_path, capsys):
         status, out, err = run(capsys, *command, "--starts", value)
         assert status == 2
         assert_one_error_line(err, "--starts", "fit starts (local runs) in [1, 100000]")
+
+
+def test_points_of_the_box_without_a_model_are_infinitely_bad():
+    """Lafortune refuses lobes whose peak max|C|^n overflows, though both lie in the fit box
+    (n up to 1e4): the loss there is inf, so no start, run or posterior ends on one, and a fit
+    whose optimiser wandered there (cornell/cayman, lambert + lafortune, crashed building the
+    report) ends on the best point that has a model."""
+    from brdf.fitting.problem import Problem
+    table = brdf.measure("lambert(albedo=0.3) + lafortune(cx=-1, cy=-1, cz=1, n=20)",
+                         "grid:10,30")
+    problem = Problem(table, "lambert + lafortune")
+    x = problem.to_x({"lafortune.n": 5000.0, "lafortune.cz": 1.5})
+    losses = problem.channel_losses(np.array([problem.x0, x])).sum(axis=1)
+    assert np.isfinite(losses[0]) and losses[1] == np.inf
+    loss, grad = problem.loss_and_gradient(x)
+    assert loss == np.inf and not grad.any()
+    with pytest.raises(brdf.errors.ParameterError):
+        problem.model(x)
+    assert np.isfinite(problem.loss(problem.x0))
