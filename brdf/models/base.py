@@ -400,18 +400,18 @@ class Compiled:
         return self.kinds, self.offsets, self.params, self.nch
 
 
-def _gauss_legendre_unit(n):
+def gauss_legendre_unit(n):
     """Nodes and weights of the n-point Gauss-Legendre rule on [0, 1]."""
     x, w = np.polynomial.legendre.leggauss(n)
     return 0.5 * (x + 1.0), 0.5 * w
 
 
 #: Panel rules of the albedo cubature: 6-point Gauss-Legendre and the embedded 3-point estimate.
-_GAUSS_RULES = (*_gauss_legendre_unit(6), *_gauss_legendre_unit(3))
+GAUSS_RULES = (*gauss_legendre_unit(6), *gauss_legendre_unit(3))
 #: What the albedo kernel takes: those rules, then a panel's corners as the nodes of a 2 x 2
 #: "rule" (just inside it, as samplers map the square's edges onto the horizon; an argument,
 #: not a global constant, whose read-only type would compile the panel kernel twice)
-_KERNEL_RULES = (*_GAUSS_RULES, np.array([1e-9, 1.0 - 1e-9]))
+_KERNEL_RULES = (*GAUSS_RULES, np.array([1e-9, 1.0 - 1e-9]))
 #: Panels the albedo cubature starts from (``_kernels._refine``: a 4 x 4 grid): the least
 #: ``max_panels`` its arrays can hold.
 _INITIAL_PANELS = 16

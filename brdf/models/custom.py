@@ -39,7 +39,7 @@ import numpy as np
 from ..errors import InputError, SpecError
 from ..geometry import direction_array, flat_pairs
 from ._registry import MODELS
-from .base import (_GAUSS_RULES, Choice, Model, Nested, Param, _gauss_legendre_unit,
+from .base import (GAUSS_RULES, Choice, Model, Nested, Param, gauss_legendre_unit,
                    cubature_options, sample_inputs)
 
 __all__ = ["CustomModel", "register_model", "unregister_model", "load_plugin", "plugin_sources",
@@ -158,7 +158,7 @@ class CustomModel(Model):
         variance, never bias. The default is a fixed :data:`HINT_POINTS` squared Gauss rule
         over the sampler's unit square."""
         wi = np.asarray(wi, dtype=float).reshape(-1, 3)
-        xs, ws = _gauss_legendre_unit(HINT_POINTS)
+        xs, ws = gauss_legendre_unit(HINT_POINTS)
         t1, t2 = (g.ravel() for g in np.meshgrid(xs, xs, indexing="ij"))
         w = np.outer(ws, ws).ravel()
         (u1, j1), (u2, j2) = _edge_warp(t1), _edge_warp(t2)
@@ -286,7 +286,7 @@ def _above(wi, wo):
 def _panel_rules(model, wi, owner, x0, y0, h):
     """Values ``(P, C)`` of the 6 x 6 Gauss rule over each panel (owner's direction, corner
     (x0, y0), side h) of the sampling square, and their differences to the 3 x 3 rule."""
-    xs_hi, ws_hi, xs_lo, ws_lo = _GAUSS_RULES
+    xs_hi, ws_hi, xs_lo, ws_lo = GAUSS_RULES
     out = []
     for xs, ws in ((xs_hi, ws_hi), (xs_lo, ws_lo)):
         n = len(xs)

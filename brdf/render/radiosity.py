@@ -151,7 +151,7 @@ def _lambert_albedo(material, k):
 
 
 def _quads_of(scene):
-    from .scene import Quad, _quad_row, _colour
+    from .scene import Quad, quad_row, rgb_value
     if scene.lights or scene.environment is not None:
         raise InputError("radiosity: only emissive quads may light the scene (no point, spot, "
                          "directional or environment lights)")
@@ -159,11 +159,11 @@ def _quads_of(scene):
     for k, s in enumerate(scene.shapes):
         if not isinstance(s, Quad):
             raise InputError(f"radiosity: shape {k}: expected a Quad, got {type(s).__name__}")
-        rows.append(_quad_row(s, k))
+        rows.append(quad_row(s, k))
         rho.append(_lambert_albedo(s.material, k))
         le = np.zeros((2, 3))
         if s.emission is not None:
-            c = _colour(s.emission, f"shape {k} emission")
+            c = rgb_value(s.emission, f"shape {k} emission")
             sides = {"front": (0,), "back": (1,), "both": (0, 1)}.get(s.sides)
             if sides is None:
                 raise InputError(f"shape {k}: sides must be front, back or both, got {s.sides!r}")

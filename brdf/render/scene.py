@@ -44,7 +44,7 @@ def _vec(x, name, n=3):
     return a
 
 
-def _colour(x, name):
+def rgb_value(x, name):
     """An RGB triple from one number (grey) or three, non-negative and finite."""
     a = _floats(x)
     if a is not None and a.size == 1:
@@ -413,7 +413,7 @@ class Scene:
                 sph.append(np.concatenate([_vec(s.centre, f"{_label(s, k)} centre"), [r]]))
                 prims.append((X.SPHERE, len(sph) - 1, mat, k))
             elif isinstance(s, Quad):
-                quad.append(_quad_row(s, k))
+                quad.append(quad_row(s, k))
                 prims.append((X.QUAD, len(quad) - 1, mat, k))
             elif isinstance(s, Mesh):
                 for t in _mesh_rows(s, k, tri, tri_n, tri_uv):
@@ -451,7 +451,7 @@ class Scene:
                     else float(np.linalg.norm(np.cross(quad[j, 1], quad[j, 2]))))
             f = np.zeros(16)
             f[0], f[1], f[2] = i, _SIDES[s.sides], area
-            f[3:6] = _colour(s.emission, f"{_label(s, k)} emission")
+            f[3:6] = rgb_value(s.emission, f"{_label(s, k)} emission")
             prim[i, 3] = len(emitters)
             emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
         lights = _pack_lights(self, emitters, scale)
@@ -463,7 +463,9 @@ def _label(item, k, kind="shape"):
     return getattr(item, "label", None) or f"{kind} {k}"
 
 
-def _quad_row(s, k):
+def quad_row(s, k):
+    """The packed row of quad ``s`` (shape ``k`` of its scene): corner, edges, normal and
+    what the hit test needs (see the layout in ``_intersect``)."""
     where = _label(s, k)
     c, e1, e2 = (_vec(s.corner, f"{where} corner"), _vec(s.edge1, f"{where} edge1"),
                  _vec(s.edge2, f"{where} edge2"))
@@ -504,7 +506,7 @@ def _mesh_rows(s, k, tri, tri_n, tri_uv):
 def _planes(prim, slots, quad, tri):
     """The intersection kernels' ``planes (nb, PLANE_ROWS, LANES)`` for the primitives in
     ``slots`` (-1: padding, all zeros): a parallelogram's normal, corner and dual vectors as
-    :func:`_quad_row` has them; a triangle's with e1 = v1 - v0 and e2 = v2 - v0."""
+    :func:`quad_row` has them; a triangle's with e1 = v1 - v0 and e2 = v2 - v0."""
     planes = np.zeros((X.PLANE_ROWS, len(slots)))
     ptype = np.where(slots >= 0, prim[slots, 0], -1)
     pidx = prim[slots, 1]
@@ -549,7 +551,7 @@ def _pack_lights(scene, emitters, scale):
         where = f"{_label(light, k, 'light')} ({type(light).__name__})"
         if isinstance(light, (PointLight, SpotLight, GoniometricLight)):
             f[0:3] = _vec(light.position, where + " position")
-            f[3:6] = _colour(light.intensity, where + " intensity")
+            f[3:6] = rgb_value(light.intensity, where + " intensity")
             att = _vec(light.attenuation, where + " attenuation")
             if np.any(att < 0) or not att.any():
                 raise InputError(f"{where}: attenuation (a, b, c) must be non-negative, not all 0")
@@ -580,7 +582,7 @@ def _pack_lights(scene, emitters, scale):
             rows.append((kind, f, power))
         elif isinstance(light, DirectionalLight):
             f[0:3] = _unit(light.direction, where + " direction")
-            f[3:6] = _colour(light.irradiance, where + " irradiance")
+            f[3:6] = rgb_value(light.irradiance, where + " irradiance")
             rows.append((L.DIRECTIONAL, f, math.pi * scale * scale * f[3:6].mean()))
         else:
             raise InputError(f"{where}: not a light")
@@ -589,7 +591,7 @@ def _pack_lights(scene, emitters, scale):
     if scene.environment is not None:
         e = scene.environment
         f = np.zeros(16)
-        f[3:6] = _colour(e.radiance, "environment radiance")
+        f[3:6] = rgb_value(e.radiance, "environment radiance")
         mean = f[3:6].mean()
         if e.map is not None:
             from .image import read_image
