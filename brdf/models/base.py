@@ -461,16 +461,12 @@ class Model(Component):
         return {f"{self.name}.{k}": v for k, v in self.flat().items()}
 
     @property
-    def anisotropic(self):
+    def is_anisotropic(self):
         """True when an optional parameter (``alpha_y``, ``nv``) differs from the one it falls
-        back to: the lobe then depends on the azimuth of wi."""
+        back to: the lobe then depends on the azimuth of wi (tables answer the same name)."""
         return any(isinstance(d, Param) and d.fallback and d.name in self._values
                    and not np.array_equal(self._values[d.name], self._values[d.fallback])
                    for d in self.PARAMS)
-
-    @property
-    def is_anisotropic(self):
-        return self.anisotropic
 
     @property
     def uses_kernels(self):
@@ -694,7 +690,7 @@ class Sum(Model):
     reciprocal = property(lambda self: all(l.reciprocal for l in self._lobes))
     delta = property(lambda self: all(l.delta for l in self._lobes))
     mirror_symmetric = property(lambda self: all(l.mirror_symmetric for l in self._lobes))
-    is_anisotropic = property(lambda self: any(l.anisotropic for l in self._lobes))
+    is_anisotropic = property(lambda self: any(l.is_anisotropic for l in self._lobes))
 
     def lobe_names(self):
         """Flat-name prefix of each lobe: its name, or name and index when a name repeats."""

@@ -169,8 +169,8 @@ class CustomModel(Model):
 
     # -- the Model interface, built on them ------------------------------------------------------
     @property
-    def anisotropic(self):
-        return not self.isotropic or super().anisotropic
+    def is_anisotropic(self):
+        return not self.isotropic or super().is_anisotropic
 
     def eval(self, wi, wo):
         """BRDF value f_r(wi, wo) in 1/sr without the cosine, shaped ``(..., C)``; 0 unless both

@@ -65,7 +65,7 @@ class Lafortune(Model):
                   directions=((-1.0, -1.0, 1.0), (1.0, 1.0, 1.0), (0.0, 0.0, 1.0)))
 
     @property
-    def anisotropic(self):
+    def is_anisotropic(self):
         return bool((self["cx"] != self["cy"]).any())
 
     def _check(self):

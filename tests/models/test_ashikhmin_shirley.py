@@ -74,9 +74,9 @@ def test_spec_round_trip(spec):
 def test_declarations():
     m = brdf.parse("ashikhmin")
     assert str(m) == "ashikhmin-shirley(rd=0.5, rs=0.05, nu=100)"
-    assert m.reciprocal and m.energy_conserving and not m.anisotropic
-    assert brdf.parse("ashikhmin-shirley(nu=10, nv=100)").anisotropic
-    assert not brdf.parse("ashikhmin-shirley(nu=10, nv=10)").anisotropic
+    assert m.reciprocal and m.energy_conserving and not m.is_anisotropic
+    assert brdf.parse("ashikhmin-shirley(nu=10, nv=100)").is_anisotropic
+    assert not brdf.parse("ashikhmin-shirley(nu=10, nv=10)").is_anisotropic
     for name in ("rd", "rs"):
         d = AshikhminShirley.declaration(name)
         assert d.per_channel and d.bounds == (0.0, 1.0)

@@ -50,9 +50,9 @@ def test_spec_round_trip(spec):
 def test_declarations():
     m = brdf.parse("lafortune")
     assert str(m) == "lafortune(cx=-1, cy=-1, cz=1, n=20)"
-    assert m.reciprocal and not m.energy_conserving and not m.anisotropic
-    assert brdf.parse("lafortune(cx=-1, cy=-0.5)").anisotropic
-    assert brdf.parse("lafortune(cx=[-1,-0.9], cy=[-1,-0.8])").anisotropic
+    assert m.reciprocal and not m.energy_conserving and not m.is_anisotropic
+    assert brdf.parse("lafortune(cx=-1, cy=-0.5)").is_anisotropic
+    assert brdf.parse("lafortune(cx=[-1,-0.9], cy=[-1,-0.8])").is_anisotropic
     for name in ("cx", "cy", "cz"):
         d = Lafortune.declaration(name)
         assert d.per_channel and d.bounds == (-math.inf, math.inf) and d.fit_bounds == (-5, 5)

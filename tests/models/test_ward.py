@@ -101,9 +101,9 @@ def test_spec_round_trip(spec):
 def test_declarations():
     m = brdf.parse("ward(ks=0.4, alpha_x=0.2, alpha_y=0.3, variant=gmd)")
     assert str(m) == "ward(rho_s=0.4, alpha=0.2, alpha_y=0.3, variant=gmd)"
-    assert m.anisotropic and m.energy_conserving and m.reciprocal
-    assert not brdf.parse("ward(alpha=0.2)").anisotropic
-    assert not brdf.parse("ward(alpha=0.2, alpha_y=0.2)").anisotropic
+    assert m.is_anisotropic and m.energy_conserving and m.reciprocal
+    assert not brdf.parse("ward(alpha=0.2)").is_anisotropic
+    assert not brdf.parse("ward(alpha=0.2, alpha_y=0.2)").is_anisotropic
     assert "variant" not in str(brdf.parse("ward(variant=original)"))  # the default is implied
     assert not brdf.parse("ward(variant=duer)").energy_conserving
     assert not brdf.parse("ward").energy_conserving
