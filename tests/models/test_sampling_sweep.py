@@ -92,6 +92,12 @@ def _bound(lobe, wi):
         if name == "phong":
             return 2.0 * math.pi * _max(v["ks"]) / ((n + 1.0) * ci)
         return _max(v["ks"]) * (n + 2.0) / (n + 1.0)
+    if name == "oren-nayar":
+        # cosine sampling: the weight is albedo (A + B g), and g = max(0, cos dphi) sin(alpha)
+        # tan(beta) <= tan(theta_i) for either order of the angles (Oren & Nayar 1994, eq. 30)
+        s2 = float(v["sigma"]) ** 2
+        a, b = 1.0 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09)
+        return _max(v["albedo"]) * (a + b * math.sqrt(max(1.0 - ci * ci, 0.0)) / ci)
     if name == "blinn-phong":
         n = float(v["n"])
         if v["normalization"] == "exact":  # Giesen 2009
