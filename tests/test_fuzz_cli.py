@@ -18,7 +18,7 @@ import fuzzing
 #: Mutants per format in CI (about 120 runs in a minute: a MERL table's check takes seconds,
 #: so its format gets fewer), and per format in the slow run.
 CASES = {"binary": 6}
-DEFAULT_CASES, SLOW_CASES = 16, 150
+DEFAULT_CASES, SLOW_CASES = 16, 80
 
 
 @pytest.fixture(scope="module")
