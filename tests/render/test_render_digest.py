@@ -3,10 +3,10 @@ not change what they compute (see :mod:`brdf.render._integrator`).
 
 The image's bytes depend on the compiler as well as on the code (the kernels are compiled with
 fast-math contraction and reassociation), so their digests are stored per numba version,
-llvmlite version and machine in ``render_digests.json``. Every run also checks what holds on any
-compiler: one thread and two give the same bytes, and the image matches the committed
-reference image ``data/digest_scene.npy`` to within the rounding a different compiler may move
-(most pixels to 1e-9, the mean to 1e-6; a change of the estimator moves them all).
+llvmlite version and processor model in ``render_digests.json``. Every run also checks what
+holds on any compiler: one thread and two give the same bytes, and the image matches the
+committed reference image ``data/digest_scene.npy`` to within the rounding a different compiler
+may move (most pixels to 1e-9, the mean to 1e-6; a change of the estimator moves them all).
 
 A change that is meant to move the image's bits: say why in its commit and run
 ``python tests/render/test_render_digest.py --record`` (``--reference`` too where the image
@@ -23,13 +23,17 @@ import warnings
 from pathlib import Path
 
 import llvmlite
+import llvmlite.binding
 import numba
 import numpy as np
 
 HERE = Path(__file__).parent
 DIGESTS = HERE / "render_digests.json"
 REFERENCE = HERE / "data" / "digest_scene.npy"
-KEY = f"numba {numba.__version__}, llvmlite {llvmlite.__version__}, {platform.machine()}"
+# the processor model, not only the architecture: numba compiles for the host's own
+# instruction set, so an AVX-512 machine and an AVX2 one round the same source differently
+KEY = (f"numba {numba.__version__}, llvmlite {llvmlite.__version__}, {platform.machine()} "
+       f"{llvmlite.binding.get_host_cpu_name()}")
 
 
 def _uv_sphere(centre, radius, rows=16, cols=32):
