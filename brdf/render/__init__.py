@@ -175,7 +175,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     RenderResult
     """
     import numba
-    from ._integrator import render_pass
+    from ._integrator import Sums, render_pass
     if not isinstance(scene, Scene):
         raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "
                          f"load()), got {type(scene).__name__}")
@@ -201,8 +201,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         # the first call compiles (or loads the cache); time it apart, on a 1-pixel image
         probe = opts.copy()
         probe[0] = probe[1] = 1
-        render_pass(*args, probe, seed, 0, 1, np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
-                    np.zeros((1, 1, 6)))
+        render_pass(*args, probe, seed, 0, 1, Sums(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
+                                                   np.zeros((1, 1, 6))))
         compile_seconds = time.perf_counter() - t0
         bar = progress_bar(int(spp), "render", "spp", progress)
         t0 = time.perf_counter()
@@ -212,7 +212,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         chunk = max(1, min(int(spp), PASS_PATHS // max(w * h, 1)))
         for s0 in range(0, int(spp), chunk):
             s1 = min(int(spp), s0 + chunk)
-            render_pass(*args, opts, seed, s0, s1, acc, acc2, aov)
+            render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov))
             if bar is not None:
                 bar.update(s1 - s0)
         seconds = time.perf_counter() - t0

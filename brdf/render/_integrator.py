@@ -35,6 +35,7 @@ sides. ``benchmarks/bench_render.py`` times the Cornell box against Mitsuba 3.
 """
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import prange
@@ -83,29 +84,29 @@ def _uniform(state, j):
 # --- geometry at a hit --------------------------------------------------------------------------
 
 @inline_kernel
-def _surface(prim, sph, quad, tri, tri_n, tri_uv, i, a, b, px, py, pz):
+def _surface(geo, i, a, b, px, py, pz):
     """Geometric normal n, shading normal s, tangent t and texture coordinates (u, v) at point
     p of primitive i hit with parameters (a, b). A quad's t is a unit vector orthogonal to n."""
-    j = prim[i, 1]
-    kind = prim[i, 0]
+    j = geo.prim[i, 1]
+    kind = geo.prim[i, 0]
     if kind == SPHERE:
-        c = sph[j]
+        c = geo.sph[j]
         nx, ny, nz = (px - c[0]) / c[3], (py - c[1]) / c[3], (pz - c[2]) / c[3]
         u = (math.atan2(ny, nx) / (2.0 * math.pi)) % 1.0
         v = 1.0 - math.acos(min(max(nz, -1.0), 1.0)) / math.pi
         return nx, ny, nz, nx, ny, nz, -ny, nx, 0.0, u, v
     if kind == QUAD:
-        g = quad[j]
+        g = geo.quad[j]
         return (g[3, 0], g[3, 1], g[3, 2], g[3, 0], g[3, 1], g[3, 2], g[6, 0], g[6, 1], g[6, 2],
                 a, b)
-    v3 = tri[j]
+    v3 = geo.tri[j]
     e1x, e1y, e1z = v3[1, 0] - v3[0, 0], v3[1, 1] - v3[0, 1], v3[1, 2] - v3[0, 2]
     e2x, e2y, e2z = v3[2, 0] - v3[0, 0], v3[2, 1] - v3[0, 1], v3[2, 2] - v3[0, 2]
     nx, ny, nz = e1y * e2z - e1z * e2y, e1z * e2x - e1x * e2z, e1x * e2y - e1y * e2x
     inv = 1.0 / math.sqrt(nx * nx + ny * ny + nz * nz)
     nx, ny, nz = nx * inv, ny * inv, nz * inv
     w0 = 1.0 - a - b
-    vn = tri_n[j]
+    vn = geo.tri_n[j]
     sx = w0 * vn[0, 0] + a * vn[1, 0] + b * vn[2, 0]
     sy = w0 * vn[0, 1] + a * vn[1, 1] + b * vn[2, 1]
     sz = w0 * vn[0, 2] + a * vn[1, 2] + b * vn[2, 2]
@@ -114,7 +115,7 @@ def _surface(prim, sph, quad, tri, tri_n, tri_uv, i, a, b, px, py, pz):
         sx, sy, sz = sx / sn, sy / sn, sz / sn
     else:
         sx, sy, sz = nx, ny, nz
-    uv = tri_uv[j]
+    uv = geo.tri_uv[j]
     u = w0 * uv[0, 0] + a * uv[1, 0] + b * uv[2, 0]
     v = w0 * uv[0, 1] + a * uv[1, 1] + b * uv[2, 1]
     return nx, ny, nz, sx, sy, sz, e1x, e1y, e1z, u, v
@@ -229,6 +230,14 @@ SHADOW_LAYOUT = (
 #: pass reads evicted each other; the pad staggers the rows over all sets (Cornell box, packets
 #: of 256: 8-10 % faster).
 ROW = PACKET + 8
+#: A packet's work space (:func:`_packet_space`): the path state ``fl`` (FLOAT_LAYOUT), ``il``
+#: (INT_LAYOUT) and ``sh`` (SHADOW_LAYOUT), a row of ROW numbers per field; the lanes' random
+#: ``state``; tracing's reciprocal directions ``inv``, ``stack`` and ``dist``; the BSDF query
+#: sets ``q`` and values ``f`` (:func:`brdf.models._kernels.mixture_batch`); the lanes' packed
+#: material parameters ``lp``; shading's ``sel`` and ``work``; a light sample's radiance ``li``.
+Packet = namedtuple("Packet", "fl il state sh inv stack dist q f lp sel work li")
+#: The running sums of a pass (:func:`render_pass`): radiance, its square, first-hit layers.
+Sums = namedtuple("Sums", "acc acc2 aov")
 
 
 @inline_kernel
@@ -270,14 +279,16 @@ def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
 
 
 @kernel
-def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state, sh, q, f, acc,
-             acc2, aov_acc):
+def _advance(cam, opts, seed, tile, s0, total, start, p, sums):
     """Move every lane on: a shaded path adds its light sample where the shadow ray got through
     and turns into its sampled direction (or ends: no sample, below the surface, Russian
     roulette); a path that ended goes into its pixel's running sums, and its lane takes the
     tile's next (pixel, sample) pair, from pair ``start`` of ``total`` (pixel-major within a
     sample, so a packet's camera rays are neighbours). Returns the next pair and the number of
     paths in flight."""
+    fl, il = p.fl, p.il
+    x0, y0, x1, y1 = tile
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     mis = opts[STRATEGY] == MIS
     layers = opts[LAYERS] != 0
     busy = 0
@@ -286,11 +297,11 @@ def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state,
     x, y, s = k % tw, k // tw, start // npix
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
-            _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j)
+            _bounce(opts, mis, layers, p, sums.aov, j)
         if il[ALIVE, j] and il[END, j]:
-            _settle(layers, fl, il, acc, acc2, j)
+            _settle(layers, fl, il, sums, j)
         if not il[ALIVE, j] and start < total:
-            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, state, j)
+            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, p.state, j)
             start += 1
             x += 1
             if x == tw:
@@ -305,13 +316,13 @@ def _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il, state,
 
 
 @kernel
-def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, params, bind,
-              tex, texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light, fl, il, sh, q, lp,
-              li):
+def _vertices(opts, geo, mats, lights, p):
     """Each path at the vertex its ray found: emission seen there (or the environment on a
     miss), the end of the path or its shading frame, parameters and next-event sample. The
     shadow rays fill the first lanes of ``sh``, so that tracing them skips the paths that cast
     none. Returns the numbers of paths to shade and of shadow rays."""
+    fl, il, sh, q, lp, li = p.fl, p.il, p.sh, p.q, p.lp, p.li
+    prim, pmf, env_light = geo.prim, lights.pmf, lights.env_light
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
     shading = shadows = 0
@@ -328,32 +339,31 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             if env_light >= 0 and (strategy != LIGHT or specular):
                 w = 1.0
                 if not specular and strategy == MIS:
-                    w = _power(fl[PREV, j], pmf[env_light] * env_pdf(lf, env, rows, cols,
-                                                                     env_light, dx, dy, dz))
-                le0, le1, le2 = env_radiance(lf, env, env_light, dx, dy, dz)
+                    w = _power(fl[PREV, j], pmf[env_light] * env_pdf(lights, env_light, dx, dy,
+                                                                     dz))
+                le0, le1, le2 = env_radiance(lights, env_light, dx, dy, dz)
                 fl[RAD, j] += fl[THR, j] * w * le0
                 fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
                 fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
             il[END, j] = 1
             continue
         t = fl[T, j]
-        hit = slots[slot]
+        hit = geo.slots[slot]
         kind = prim[hit, 0]
         a, b = 0.0, 0.0
         if kind != SPHERE:
-            a, b = plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t)
+            a, b = plane_coordinates(geo.planes, slot, ox, oy, oz, dx, dy, dz, t)
         px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-        nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(prim, sph, quad, tri, tri_n, tri_uv,
-                                                            hit, a, b, px, py, pz)
+        nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(geo, hit, a, b, px, py, pz)
         light = prim[hit, 3]
-        if light >= 0 and emits_towards(lf[light], nx, ny, nz, -dx, -dy, -dz):
+        if light >= 0 and emits_towards(lights.lf[light], nx, ny, nz, -dx, -dy, -dz):
             if strategy != LIGHT or specular:
                 w = 1.0
                 if not specular and strategy == MIS:
                     w = _power(fl[PREV, j], pmf[light] * area_pdf(
-                        prim, sph, lf[light], ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
+                        geo, lights.lf[light], ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
                 for c in range(3):
-                    fl[RAD + c, j] += fl[THR + c, j] * w * lf[light, 3 + c]
+                    fl[RAD + c, j] += fl[THR + c, j] * w * lights.lf[light, 3 + c]
         m = prim[hit, 2]
         if il[DEPTH_, j] + 1 >= opts[DEPTH] or m < 0:
             il[END, j] = 1
@@ -379,17 +389,16 @@ def _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots, mint, pa
             q[s, GIVEN, j] = -(dx * ax + dy * ay + dz * az)
             q[s, GIVEN + 1, j] = -(dx * bx + dy * by + dz * bz)
             q[s, GIVEN + 2, j] = -(dx * sx + dy * sy + dz * sz)
-        material_params(mint, params, bind, tex, texmeta, m, u, v, lp[j])
-        il[MAT, j] = mint[m, SHARE]
+        material_params(mats, m, u, v, lp[j])
+        il[MAT, j] = mats.mint[m, SHARE]
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
         fl[Q, j], fl[Q + 1, j], fl[Q + 2, j] = qx, qy, qz
         # next-event estimation: a light, a point or direction on it, and its shadow ray
         if nlights > 0:
             l, ul = pick_light(pmf, fl[U + PICK, j])
             u2 = fl[U + ON_LIGHT, j]
-            if strategy != BSDF or (ltype[l] != AREA and ltype[l] != ENV):
-                ldx, ldy, ldz, dist, lpdf = sample_light(ltype, lf, gonio, env, rows, cols, prim,
-                                                         sph, quad, l, qx, qy, qz, ul, u2, li)
+            if strategy != BSDF or (lights.ltype[l] != AREA and lights.ltype[l] != ENV):
+                ldx, ldy, ldz, dist, lpdf = sample_light(lights, geo, l, qx, qy, qz, ul, u2, li)
                 if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
                         and ldx * nx + ldy * ny + ldz * nz > 0.0):
                     k = il[NEE, j] = shadows
@@ -416,11 +425,12 @@ def _lit(il, sh, j):
 
 
 @kernel
-def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel, work):
+def _shade(opts, mats, p):
     """The BSDF at each shaded path's vertex, one batch per lobe layout (materials that share
     one shade together, each path with its own parameters; see ``SHARE``): a
     sampled next direction (query set DRAW), and towards the light where the shadow ray got
     through (query set PAIR: f, and for MIS the BSDF's density there)."""
+    fl, il, sh = p.fl, p.il, p.sh
     mis = opts[STRATEGY] == MIS
     lists = il[LIST:LIST + 5]
     counts = il[COUNT]
@@ -447,19 +457,20 @@ def _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f,
             n3 += lit & mis & (fl[LPDF, j] < math.inf)
         counts[0] = counts[1] = n0
         counts[2], counts[3] = n2, n3
-        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, fl[U + BSDF_U1],
-                   fl[U + BSDF_U2], sel, work, il[CHOSEN], lists, counts)
+        bsdf_shade(mats, m, p.lp, p.q, p.f, fl[U + BSDF_U1], fl[U + BSDF_U2], p.sel, p.work,
+                   il[CHOSEN], lists, counts)
 
 
 @inline_kernel
-def _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j):
+def _bounce(opts, mis, layers, p, aov_acc, j):
     """Path j adds its light sample where the shadow ray got through, then turns into its
     sampled direction, or ends (END) where there is none, below the surface, or by Russian
     roulette; at its first vertex it adds the first-hit layers to its pixel's sums if
     ``layers`` (at once: carrying them in rows to the path's end cost more)."""
+    fl, il, q, f = p.fl, p.il, p.q, p.f
     # a select, not a branch (see _lit): an unlit lane's numbers are stale, and whatever they
     # make is dropped
-    lit = _lit(il, sh, j)
+    lit = _lit(il, p.sh, j)
     lpdf, pick = fl[LPDF, j], fl[LPICK, j]
     cos_l = max(q[PAIR, DRAWN + 2, j], 0.0)
     w = _power(pick * lpdf, q[PAIR, PDF, j]) if mis else 1.0
@@ -498,7 +509,7 @@ def _bounce(opts, mis, layers, fl, il, sh, q, f, aov_acc, j):
 
 
 @inline_kernel
-def _settle(layers, fl, il, acc, acc2, j):
+def _settle(layers, fl, il, sums, j):
     """Add the ended path j to its pixel's running sums (and its square's, if ``layers``) and
     free its lane."""
     x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
@@ -506,74 +517,62 @@ def _settle(layers, fl, il, acc, acc2, j):
         r = fl[RAD + c, j]
         if r != r or r == math.inf:
             r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
-        acc[y, x, c] += r
+        sums.acc[y, x, c] += r
         if layers:
-            acc2[y, x, c] += r * r
+            sums.acc2[y, x, c] += r * r
     il[ALIVE, j] = 0
 
 
 @kernel
-def trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes,
-               mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta,
-               ltype, lf, pmf, gonio, env, rows, cols, env_light,
-               seed, x0, y0, x1, y1, s0, s1, acc, acc2, aov_acc,
-               fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li):
-    """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) into the running sums (see
-    :func:`render_pass`): for each, the radiance along its camera ray, and with opts[LAYERS]
-    the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal. The
-    other arrays are the packet's work space (:func:`_packet_space`)."""
-    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
-    total = npix * (s1 - s0)
+def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, p):
+    """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) of ``tile`` into the running
+    ``sums`` (see :func:`render_pass`): for each, the radiance along its camera ray, and with
+    opts[LAYERS] the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading
+    normal. ``p`` is the packet's work space (:func:`_packet_space`)."""
+    x0, y0, x1, y1 = tile
+    total = (x1 - x0) * (y1 - y0) * (s1 - s0)
+    fl, il, sh = p.fl, p.il, p.sh
     start = 0
     while True:
-        start, busy = _advance(cam, opts, seed, x0, y0, tw, npix, s0, total, start, fl, il,
-                               state, sh, q, f, acc, acc2, aov_acc)
+        start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums)
         if busy == 0:
             return
-        trace_packet(prim, sph, planes, box, child, slots, stack, dist, fl, inv, il[ENTERS],
-                     fl[T], il[HIT], False, PACKET)
-        _draw(fl, state)
-        shading, shadows = _vertices(opts, prim, sph, quad, tri, tri_n, tri_uv, planes, slots,
-                                     mint, params, bind, tex, texmeta, ltype, lf, pmf, gonio, env,
-                                     rows, cols, env_light, fl, il, sh, q, lp, li)
+        trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False, PACKET)
+        _draw(fl, p.state)
+        shading, shadows = _vertices(opts, geo, mats, lights, p)
         if shadows > 0:
             # whole SIMD registers of lanes (eight numbers: AVX-512)
-            trace_packet(prim, sph, planes, box, child, slots, stack, dist, sh, inv, il[ENTERS],
-                         sh[LENGTH], il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
+            trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH], il[BLOCKER],
+                         True, min(PACKET, (shadows + 7) // 8 * 8))
         if shading > 0:
-            _shade(opts, mint, kinds, offs, grids, filled, tables, fl, il, sh, lp, q, f, sel,
-                   work)
+            _shade(opts, mats, p)
 
 
 @allocating_kernel
 def _packet_space(nparams, nlobes):
-    """A packet's work arrays (zeroed: idle lanes' leftovers steer the packet's traversal, so
-    they must not depend on what the memory held): see :func:`trace_tile`."""
-    return (np.zeros((FLOAT_ROWS, ROW)), np.zeros((INT_ROWS, ROW), np.int64),
-            np.zeros(PACKET, np.uint64), np.zeros((SHADOW_ROWS, ROW)), np.zeros((3, ROW)),
-            np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, QUERY_ROWS, ROW)),
-            np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)), np.zeros((PACKET, nlobes)),
-            np.zeros((PACKET, 2)), np.zeros(3))
+    """A packet's work space, a :data:`Packet` (zeroed: idle lanes' leftovers steer the
+    packet's traversal, so they must not depend on what the memory held)."""
+    return Packet(np.zeros((FLOAT_ROWS, ROW)), np.zeros((INT_ROWS, ROW), np.int64),
+                  np.zeros(PACKET, np.uint64), np.zeros((SHADOW_ROWS, ROW)), np.zeros((3, ROW)),
+                  np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, QUERY_ROWS, ROW)),
+                  np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)),
+                  np.zeros((PACKET, nlobes)), np.zeros((PACKET, 2)), np.zeros(3))
 
 
 @parallel_kernel
-def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
-    """Add samples s0 .. s1 - 1 of every pixel to the running sums: radiance into ``acc``, and
-    if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov_acc``
+def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums):
+    """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
+    ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
     (h, w, 6). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
     by :func:`trace_tile` in a packet of paths; a tile's pixels are its own, so the sums do not
-    depend on who traced it. The scene's tuples are unpacked here, once (see :mod:`._intersect`
-    on why the kernels take plain arrays)."""
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
-    mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
-    ltype, lf, pmf, gonio, env, rows, cols, env_light = lights
+    depend on who traced it."""
     w, h, tile = opts[W], opts[H], opts[TILE]
     tx_n = (w + tile - 1) // tile
     ntiles = tx_n * ((h + tile - 1) // tile)
-    nparams = max(params.shape[0], 1)
+    nparams = max(mats.params.shape[0], 1)
     nlobes = 1
-    for m in range(mint.shape[0]):
-        nlobes = max(nlobes, mint[m, K1] - mint[m, K0])
+    for m in range(mats.mint.shape[0]):
+        nlobes = max(nlobes, mats.mint[m, K1] - mats.mint[m, K0])
     # each thread takes the next tile as it finishes one: numba's parallel loop would split
     # the tiles into equal shares, and on a shared host one core can run 5-18 % slower than
     # the other for seconds at a time (measured per thread on the Cornell box)
@@ -584,10 +583,6 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, acc, acc2, aov_acc):
             if k >= ntiles:
                 break
             x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
-            fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li = _packet_space(
-                nparams, nlobes)
-            trace_tile(cam, opts, prim, sph, quad, tri, tri_n, tri_uv, box, child, slots,
-                       planes, mint, kinds, offs, params, grids, filled, tables, bind, tex,
-                       texmeta, ltype, lf, pmf, gonio, env, rows, cols, env_light,
-                       seed, x0, y0, min(x0 + tile, w), min(y0 + tile, h), s0, s1, acc, acc2,
-                       aov_acc, fl, il, state, sh, inv, stack, dist, q, f, lp, sel, work, li)
+            trace_tile(cam, opts, geo, mats, lights, seed,
+                       (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums,
+                       _packet_space(nparams, nlobes))

@@ -5,9 +5,11 @@ classic scenes, cheaper than two triangles) and triangles. They share one primit
 ``prim (n, 4)``: kind, row in that kind's array, material (-1: black) and area light (-1: none),
 and one BVH over it.
 
-The kernels take plain arrays, never tuples of them: numba passes a tuple by copying it and
-counting a reference to each member, which cost more than the intersection tests themselves.
-Geometry arrays (see :class:`brdf.render.scene.Compiled`):
+The kernels take the geometry as one :data:`Geometry` tuple of arrays, fields by name. Kernels
+compiled without reference counting (:func:`brdf._jit.kernel`) pass a tuple as its members'
+fields, as they pass the arrays themselves: no copy, no count (the plain-array arguments of
+earlier versions avoided a reference count per member that those kernels no longer take).
+Its arrays (built by :meth:`brdf.render.scene.Scene.compile`):
 
 - ``sph (ns, 4)``: centre and radius;
 - ``quad (nq, 7, 3)``: corner p, edges e1 and e2, unit normal n = e1 x e2 / |e1 x e2|, the
@@ -30,6 +32,7 @@ lanes, where they part ways.
 """
 
 import math
+from collections import namedtuple
 
 from .._jit import inline_kernel, kernel
 
@@ -50,6 +53,8 @@ LANES = 16
 ORIGIN, DIRECTION, RAY_ROWS = 0, 3, 6
 #: Depth of the traversal stack (a median-split tree over 2^60 primitives fits).
 STACK = 64
+#: The scene's geometry as every kernel takes it (the arrays described above).
+Geometry = namedtuple("Geometry", "prim sph quad tri tri_n tri_uv box child slots planes")
 
 
 # --- primitives ------------------------------------------------------------------------------
@@ -161,24 +166,25 @@ def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
 
 
 @inline_kernel
-def _slot_hit(prim, sph, slots, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
+def _slot_hit(geo, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
     """Distance to the primitive in ``slot``, lane j of the leaf pass (which held it to the
     pass's tmax), the sphere's own test in (0, tmax) for a sphere; inf on a miss."""
     t = dist[j]
     if t < 0.0:
-        t = hit_sphere(sph[prim[slots[slot], 1]], ox, oy, oz, dx, dy, dz, tmax)
+        t = hit_sphere(geo.sph[geo.prim[geo.slots[slot], 1]], ox, oy, oz, dx, dy, dz, tmax)
         return t if t > 0.0 else math.inf
     return t
 
 
 @kernel
-def _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, start, ox, oy, oz, dx,
-                dy, dz, rx, ry, rz, tmax, any_hit):
+def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz, tmax,
+                any_hit):
     """One ray (origin o, direction d, reciprocal direction r) through the subtree of node
     ``start``: ``(t, slot)`` of its nearest hit in (0, tmax), or with ``any_hit`` of the first
     one found; slot -1 on a miss. ``stack`` holds the caller's entries below ``top``; ``dist``
     (LANES numbers) is work space. Nearer children are visited first for the nearest hit: its
     hits shorten the far child's tests."""
+    box, child, planes = geo.box, geo.child, geo.planes
     stack[top] = start
     bottom = top
     top += 1
@@ -193,8 +199,7 @@ def _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, start, o
             for blk in range(-c0 - 1, -c0 - 1 + c1):
                 leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, best, dist)
                 for j in range(LANES):
-                    t = _slot_hit(prim, sph, slots, dist, blk * LANES + j, j, ox, oy, oz, dx, dy,
-                                  dz, best)
+                    t = _slot_hit(geo, dist, blk * LANES + j, j, ox, oy, oz, dx, dy, dz, best)
                     if t < best:
                         best, found = t, blk * LANES + j
                         if any_hit:
@@ -260,13 +265,14 @@ def _packet_enters(box, nd, ray, inv, tmax, enters, n):
 
 
 @kernel
-def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
+def _packet_slot(geo, slot, ray, tmax, hit, n):
     """Test the primitive in ``slot`` against the first n lanes (:func:`hit_sphere`,
     :func:`plane_distance`): where it lies within (0, tmax[j]), tmax[j] becomes its distance
     and hit[j] the slot."""
+    planes = geo.planes
     b, s = slot // LANES, slot % LANES
     if planes[b, PSPH, s] != 0.0:
-        c = sph[prim[slots[slot], 1]]
+        c = geo.sph[geo.prim[geo.slots[slot], 1]]
         for j in range(n):
             ox, oy, oz, dx, dy, dz = ray_at(ray, j)
             t = hit_sphere(c, ox, oy, oz, dx, dy, dz, tmax[j])
@@ -283,8 +289,7 @@ def _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n):
 
 
 @kernel
-def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, enters, tmax, hit,
-                 any_hit, n):
+def trace_packet(geo, stack, dist, ray, inv, enters, tmax, hit, any_hit, n):
     """Trace the rays of the packet's first n lanes (``ray``: rows ORIGIN and DIRECTION hold
     their origins and unit directions, a lane each) through the tree.
 
@@ -294,6 +299,7 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
     traversal once every lane has one; ``tmax`` is then spent. Lanes with tmax[j] < 0 are
     idle. ``stack`` (2 STACK integers), ``dist`` (LANES numbers), ``inv`` (3 rows) and
     ``enters`` (PACKET integers) are work space."""
+    box, child, slots = geo.box, geo.child, geo.slots
     busy = 0
     for j in range(n):
         _, _, _, dx, dy, dz = ray_at(ray, j)
@@ -313,9 +319,8 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
                 if not enters[j]:
                     continue
                 ox, oy, oz, dx, dy, dz = ray_at(ray, j)
-                t, slot = _trace_lane(prim, sph, planes, box, child, slots, stack, top, dist, nd,
-                                      ox, oy, oz, dx, dy, dz, inv[0, j], inv[1, j], inv[2, j],
-                                      tmax[j], any_hit)
+                t, slot = _trace_lane(geo, stack, top, dist, nd, ox, oy, oz, dx, dy, dz,
+                                      inv[0, j], inv[1, j], inv[2, j], tmax[j], any_hit)
                 if slot >= 0:
                     tmax[j], hit[j] = (-1.0, slot) if any_hit else (t, slot)
                     busy -= any_hit
@@ -330,7 +335,7 @@ def trace_packet(prim, sph, planes, box, child, slots, stack, dist, ray, inv, en
                 slot = blk * LANES + s
                 if slots[slot] < 0:
                     break
-                _packet_slot(prim, sph, planes, slots, slot, ray, tmax, hit, n)
+                _packet_slot(geo, slot, ray, tmax, hit, n)
         if any_hit:
             for j in range(n):
                 if hit[j] >= 0 and tmax[j] > 0.0:

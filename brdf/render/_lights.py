@@ -1,10 +1,11 @@
 """Light sources in the renderer (numba kernels): sampling for next-event estimation, and the
 radiance and density of emitters that paths hit.
 
-Light arrays (see :class:`brdf.render.scene.Compiled`): ``ltype (nl,)``, ``lf (nl, 16)``,
-selection probabilities ``pmf (nl,)``, goniometric tables ``gonio (ng, GONIO_THETA,
-GONIO_PHI)``, the environment map ``env (h, w, 3)`` with its row and per-row CDFs ``env_rows
-(h + 1,)``, ``env_cols (h, w + 1)``, and ``env_light``, the index of the environment (-1: none).
+The kernels take the lights as one :data:`Lights` tuple (built by
+:meth:`brdf.render.scene.Scene.compile`): ``ltype (nl,)``, ``lf (nl, 16)``, selection
+probabilities ``pmf (nl,)``, goniometric tables ``gonio (ng, GONIO_THETA, GONIO_PHI)``, the
+environment map ``env (h, w, 3)`` with its row and per-row CDFs ``rows (h + 1,)``, ``cols (h,
+w + 1)``, and ``env_light``, the index of the environment (-1: none).
 
 Fields of ``lf`` by type (positions and directions in world space, colours RGB):
 
@@ -18,6 +19,7 @@ Fields of ``lf`` by type (positions and directions in world space, colours RGB):
 """
 
 import math
+from collections import namedtuple
 
 from .._jit import inline_kernel
 from ._intersect import SPHERE
@@ -27,6 +29,8 @@ POINT, SPOT, DIRECTIONAL, AREA, GONIO, ENV = 0, 1, 2, 3, 4, 5
 FRONT, BACK = 1, 2
 #: Resolution of the goniometric tables after resampling (1 degree in theta, 2 in phi).
 GONIO_THETA, GONIO_PHI = 181, 181
+#: The lights as every kernel takes them (the fields described above).
+Lights = namedtuple("Lights", "ltype lf pmf gonio env rows cols env_light")
 
 
 @inline_kernel
@@ -77,12 +81,12 @@ def _env_pixel(env, x, y, z):
 
 
 @inline_kernel
-def env_radiance(lf, env, e, dx, dy, dz):
+def env_radiance(lights, e, dx, dy, dz):
     """RGB radiance of environment light e along world direction d (0 if e < 0); one map
     lookup for the three channels."""
     if e < 0:
         return 0.0, 0.0, 0.0
-    f = lf[e]
+    f, env = lights.lf[e], lights.env
     if f[0] == 0.0:
         return f[3], f[4], f[5]
     x, y, z = _env_local(f, dx, dy, dz)
@@ -91,11 +95,11 @@ def env_radiance(lf, env, e, dx, dy, dz):
 
 
 @inline_kernel
-def env_pdf(lf, env, rows, cols, e, dx, dy, dz):
+def env_pdf(lights, e, dx, dy, dz):
     """Solid-angle density of :func:`_sample_env` for direction d: uniform over the sphere for
     a constant environment; for a map the pixel's probability over its solid angle,
     p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of variables)."""
-    f = lf[e]
+    f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         return 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
@@ -123,9 +127,9 @@ def _invert(cdf, u):
 
 
 @inline_kernel
-def _sample_env(lf, env, rows, cols, e, u1, u2):
+def _sample_env(lights, e, u1, u2):
     """World direction drawn from environment light e and its solid-angle density."""
-    f = lf[e]
+    f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         z = 1.0 - 2.0 * u1
         r = math.sqrt(max(0.0, 1.0 - z * z))
@@ -143,7 +147,7 @@ def _sample_env(lf, env, rows, cols, e, u1, u2):
     dx = f[6] * x + f[9] * y + f[12] * z
     dy = f[7] * x + f[10] * y + f[13] * z
     dz = f[8] * x + f[11] * y + f[14] * z
-    return dx, dy, dz, env_pdf(lf, env, rows, cols, e, dx, dy, dz)
+    return dx, dy, dz, env_pdf(lights, e, dx, dy, dz)
 
 
 # --- area lights ------------------------------------------------------------------------------
@@ -158,12 +162,12 @@ def emits_towards(f, nx, ny, nz, dx, dy, dz):
 
 
 @inline_kernel
-def area_pdf(prim, sph, f, px, py, pz, vx, vy, vz, dist, nx, ny, nz):
+def area_pdf(geo, f, px, py, pz, vx, vy, vz, dist, nx, ny, nz):
     """Solid-angle density, seen from p, with which :func:`_sample_area` draws the point
     p + v on the light (|v| = dist, outward normal n)."""
-    i = int(f[0])
+    i, prim = int(f[0]), geo.prim
     if prim[i, 0] == SPHERE:
-        s = sph[prim[i, 1]]
+        s = geo.sph[prim[i, 1]]
         cx, cy, cz, r = s[0] - px, s[1] - py, s[2] - pz, s[3]
         dc2 = cx * cx + cy * cy + cz * cz
         if dc2 > r * r * (1.0 + 1e-9):
@@ -179,12 +183,12 @@ def area_pdf(prim, sph, f, px, py, pz, vx, vy, vz, dist, nx, ny, nz):
 
 
 @inline_kernel
-def _sample_area(prim, sph, quad, f, px, py, pz, u1, u2):
+def _sample_area(geo, f, px, py, pz, u1, u2):
     """A point on area light f seen from p: ``(qx, qy, qz, nx, ny, nz)``."""
     i = int(f[0])
-    j = prim[i, 1]
-    if prim[i, 0] == SPHERE:
-        s = sph[j]
+    j = geo.prim[i, 1]
+    if geo.prim[i, 0] == SPHERE:
+        s = geo.sph[j]
         cx, cy, cz, r = s[0], s[1], s[2], s[3]
         wx, wy, wz = cx - px, cy - py, cz - pz
         dc2 = wx * wx + wy * wy + wz * wz
@@ -206,7 +210,7 @@ def _sample_area(prim, sph, quad, f, px, py, pz, u1, u2):
             sin_phi, cos_phi = sampling.sincos_turn(u2)
             qx, qy, qz = cx + r * rr * cos_phi, cy + r * rr * sin_phi, cz + r * z
         return qx, qy, qz, (qx - cx) / r, (qy - cy) / r, (qz - cz) / r
-    g = quad[j]
+    g = geo.quad[j]
     return (g[0, 0] + u1 * g[1, 0] + u2 * g[2, 0], g[0, 1] + u1 * g[1, 1] + u2 * g[2, 1],
             g[0, 2] + u1 * g[1, 2] + u2 * g[2, 2], g[3, 0], g[3, 1], g[3, 2])
 
@@ -226,13 +230,13 @@ def pick_light(pmf, u):
 
 
 @inline_kernel
-def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, pz, u1, u2, li):
+def sample_light(lights, geo, l, px, py, pz, u1, u2, li):
     """Incident light at p from light l: returns ``(dx, dy, dz, dist, pdf)`` with d the unit
     direction towards the light, dist the shadow-ray length (inf for directional and
     environment light) and pdf its solid-angle density (inf for delta lights, 0 for none), and
     writes the incident radiance (or, for delta lights, irradiance normal to d) into li[:3]."""
-    t = ltype[l]
-    f = lf[l]
+    t = lights.ltype[l]
+    f = lights.lf[l]
     if t == POINT or t == SPOT or t == GONIO:
         dx, dy, dz = f[0] - px, f[1] - py, f[2] - pz
         r = math.sqrt(dx * dx + dy * dy + dz * dz)
@@ -243,7 +247,7 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
             # the spotlight of classic course notes: I cos^n(angle to the axis) inside the cone
             s = s * ca ** f[13] if ca >= f[12] else 0.0
         elif t == GONIO:
-            s *= gonio_intensity(gonio, f, -dx, -dy, -dz)
+            s *= gonio_intensity(lights.gonio, f, -dx, -dy, -dz)
         for c in range(3):
             li[c] = f[3 + c] * s
         return dx, dy, dz, r, math.inf
@@ -252,7 +256,7 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
             li[c] = f[3 + c]
         return -f[0], -f[1], -f[2], math.inf, math.inf
     if t == AREA:
-        qx, qy, qz, nx, ny, nz = _sample_area(prim, sph, quad, f, px, py, pz, u1, u2)
+        qx, qy, qz, nx, ny, nz = _sample_area(geo, f, px, py, pz, u1, u2)
         vx, vy, vz = qx - px, qy - py, qz - pz
         r2 = vx * vx + vy * vy + vz * vz
         if r2 <= 0.0:
@@ -264,7 +268,7 @@ def sample_light(ltype, lf, gonio, env, rows, cols, prim, sph, quad, l, px, py, 
             return dx, dy, dz, r, 0.0
         for c in range(3):
             li[c] = f[3 + c]
-        return dx, dy, dz, r, area_pdf(prim, sph, f, px, py, pz, vx, vy, vz, r, nx, ny, nz)
-    dx, dy, dz, pdf = _sample_env(lf, env, rows, cols, l, u1, u2)
-    li[0], li[1], li[2] = env_radiance(lf, env, l, dx, dy, dz)
+        return dx, dy, dz, r, area_pdf(geo, f, px, py, pz, vx, vy, vz, r, nx, ny, nz)
+    dx, dy, dz, pdf = _sample_env(lights, l, u1, u2)
+    li[0], li[1], li[2] = env_radiance(lights, l, dx, dy, dz)
     return dx, dy, dz, math.inf, pdf

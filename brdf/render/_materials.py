@@ -12,7 +12,8 @@ given ``v`` (models sample their second argument given the first; for reciprocal
 roles may be exchanged, and the one non-reciprocal family, the original Phong lobe, is then
 re-evaluated in the right order).
 
-Material arrays (see :class:`brdf.render.scene.Compiled`): ``mint (nm, 11)`` one row per
+The kernels take the materials as one :data:`Materials` tuple (built by
+:meth:`brdf.render.scene.Scene.compile`): ``mint (nm, 11)`` one row per
 material (columns below: type, measured grid, ranges into ``kinds``, ``offs``, ``params`` and
 ``bind``, and the first material with the same lobes and parameter layout, whose batch its
 paths join: each path carries its own parameter row, so the Cornell box's three Lambertian
@@ -24,6 +25,7 @@ channels).
 """
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import prange
@@ -37,6 +39,8 @@ from ..sampling import sincos_turn, square_to_cosine_hemisphere
 MODEL, MEASURED = 0, 1
 #: columns of ``mint``
 TYPE, GRID, K0, K1, O0, O1, P0, P1, SHARE, B0, B1 = range(11)
+#: The materials as every kernel takes them (the arrays described above).
+Materials = namedtuple("Materials", "mint kinds offs params grids filled tables bind tex texmeta")
 #: Tabulated sampling of measured tables: incidence bins, theta_o cells, phi_o cells.
 TAB_THETA_I, TAB_THETA, TAB_PHI = 24, 48, 96
 #: Share of cosine-weighted samples mixed into a measured table's tabulated sampling, so that
@@ -68,14 +72,15 @@ def texture_lookup(tex, meta, t, ch, u, v):
 
 
 @inline_kernel
-def material_params(mint, params, bind, tex, texmeta, m, u, v, row):
+def material_params(mats, m, u, v, row):
     """Write the packed parameters of material m at surface point (u, v) into ``row``: the
     material's own, with the slots that textures bind replaced by the textures' values there."""
+    mint, bind = mats.mint, mats.bind
     p0 = mint[m, P0]
     for j in range(mint[m, P1] - p0):  # a slice assignment may allocate, which kernels cannot
-        row[j] = params[p0 + j]
+        row[j] = mats.params[p0 + j]
     for j in range(mint[m, B0], mint[m, B1]):
-        row[bind[j, 1]] = texture_lookup(tex, texmeta, bind[j, 2], bind[j, 3], u, v)
+        row[bind[j, 1]] = texture_lookup(mats.tex, mats.texmeta, bind[j, 2], bind[j, 3], u, v)
 
 
 # --- measured tables: tabulated importance sampling --------------------------------------------
@@ -184,19 +189,19 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
 
 
 @inline_kernel
-def bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, u1, u2, sel, work,
-               chosen, lists, counts):
+def bsdf_shade(mats, m, lp, q, f, u1, u2, sel, work, chosen, lists, counts):
     """Shade a batch of paths on material m (see
     :func:`brdf.models._kernels.mixture_batch` for the query sets and lists): draw l given v
     at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[DRAW]``; f(l, v)
     at ``lists[2]`` and the density of l at ``lists[3]`` in set PAIR. ``lists[0]`` repeats
     ``lists[1]``, and ``lists[4]`` is work space."""
+    mint = mats.mint
     if mint[m, TYPE] == MEASURED:
         g = mint[m, GRID]
-        _measured_batch(grids[g], filled[g], tables[g], q, f, u1, u2, lists, counts)
+        _measured_batch(mats.grids[g], mats.filled[g], mats.tables[g], q, f, u1, u2, lists, counts)
         return
-    mixture_batch(kinds[mint[m, K0]:mint[m, K1]], offs[mint[m, O0]:mint[m, O1]], lp, 1, 3, q, f,
-                  u1, u2, sel, work, chosen, lists, counts, False)
+    mixture_batch(mats.kinds[mint[m, K0]:mint[m, K1]], mats.offs[mint[m, O0]:mint[m, O1]], lp, 1,
+                  3, q, f, u1, u2, sel, work, chosen, lists, counts, False)
 
 
 def tabulate(table):
@@ -233,7 +238,7 @@ def _driver_space(mats, m, v, k0, count, lists, counts):
     """Work space of :func:`bsdf_shade` for the directions v[k0:k0 + count] on material m: query
     sets with v in rows GIVEN, values, the uniform pair, parameter rows, selection, work and
     chosen; the lists get the items in order."""
-    mint, params = mats[0], mats[3]
+    mint, params = mats.mint, mats.params
     p = params[mint[m, P0]:mint[m, P1]]
     q, f, u = np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, 3)), np.zeros((2, BATCH))
     lp = np.zeros((BATCH, max(p.shape[0], 1)))
@@ -251,7 +256,6 @@ def _driver_space(mats, m, v, k0, count, lists, counts):
 def sample_array(mats, m, v, u, l, pdf, weight):
     """Array driver of :func:`bsdf_shade`'s draw for material m (tests, plots): l, pdf, weight
     for each view direction v[k] and uniform pair u[k]."""
-    mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
     n = v.shape[0]
     for b in prange((n + BATCH - 1) // BATCH):
         k0 = b * BATCH
@@ -261,8 +265,7 @@ def sample_array(mats, m, v, u, l, pdf, weight):
         for t in range(c):
             uu[0, t], uu[1, t] = u[k0 + t, 0], u[k0 + t, 1]
         counts[0] = counts[1] = c
-        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
-                   chosen, lists, counts)
+        bsdf_shade(mats, m, lp, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
         for t in range(c):
             for a in range(3):
                 l[k0 + t, a] = q[DRAW, DRAWN + a, t]
@@ -274,7 +277,6 @@ def sample_array(mats, m, v, u, l, pdf, weight):
 @parallel_kernel
 def pdf_array(mats, m, v, l, pdf):
     """Array driver of :func:`bsdf_shade`'s density for material m."""
-    mint, kinds, offs, params, grids, filled, tables, bind, tex, texmeta = mats
     n = v.shape[0]
     for b in prange((n + BATCH - 1) // BATCH):
         k0 = b * BATCH
@@ -285,6 +287,5 @@ def pdf_array(mats, m, v, l, pdf):
             for a in range(3):
                 q[PAIR, DRAWN + a, t] = l[k0 + t, a]
         counts[0] = counts[3] = c
-        bsdf_shade(mint, kinds, offs, grids, filled, tables, m, lp, q, f, uu[0], uu[1], sel, work,
-                   chosen, lists, counts)
+        bsdf_shade(mats, m, lp, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
         pdf[k0:k0 + c] = q[PAIR, PDF, :c]

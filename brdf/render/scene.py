@@ -363,9 +363,9 @@ _SIDES = {"front": L.FRONT, "back": L.BACK, "both": L.FRONT | L.BACK}
 
 
 class Compiled:
-    """The kernels' view of a scene: the ``geo`` arrays (prim, sph, quad, tri, tri_n, tri_uv,
-    BVH boxes, children, slots, planes), ``mats`` (see ``_materials``) and ``lights`` (see
-    ``_lights``)."""
+    """The kernels' view of a scene: ``geo``, ``mats`` and ``lights``, the named tuples of
+    arrays declared beside the kernels that read them (``_intersect.Geometry``,
+    ``_materials.Materials``, ``_lights.Lights``)."""
 
     def __init__(self, geo, mats, lights, bounds):
         self.geo, self.mats, self.lights, self.bounds = geo, mats, lights, bounds
@@ -435,8 +435,8 @@ class Scene:
         pad = 1e-9 * (1.0 + scale)
         nodes, child, order = build_bvh(lo - pad, hi + pad)
         child, slots = block_leaves(child, order)
-        geo = (prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
-               _planes(prim, slots, quad, tri))
+        geo = X.Geometry(prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
+                         _planes(prim, slots, quad, tri))
         # area lights from emissive shapes
         for i, (kind, j, _, k) in enumerate(prims):
             s = self.shapes[k]
@@ -613,7 +613,7 @@ def _pack_lights(scene, emitters, scale):
         pmf /= pmf.sum()
     gonio = (np.array(gonio, float) if gonio
              else np.zeros((1, L.GONIO_THETA, L.GONIO_PHI)))
-    return (ltype, lf, pmf, gonio, env, env_rows, env_cols, env_light)
+    return L.Lights(ltype, lf, pmf, gonio, env, env_rows, env_cols, env_light)
 
 
 def _env_frame(up):
@@ -712,15 +712,16 @@ class _MaterialTable:
             row[[M.K1, M.O1, M.P1, M.B1]] = len(kinds), len(offs), len(params), len(bind)
             rows.append(row)
         grid_shape = (1, 1, 1, 3)  # a placeholder the kernels never read
-        return (np.array(rows, np.int64).reshape(-1, 11),
-                np.array(kinds, np.int64), np.array(offs, np.int64), np.array(params, float),
-                np.stack(grids) if grids else np.zeros((1,) + grid_shape),
-                np.stack(filled) if filled else np.zeros((1,) + grid_shape),
-                np.stack(tables) if tables else np.zeros((1, M.TAB_THETA_I,
-                                                          M.TAB_THETA * M.TAB_PHI + 1)),
-                np.array(bind, np.int64).reshape(-1, 4),
-                np.concatenate(tex) if tex else np.zeros(1),
-                np.array(texmeta, np.int64).reshape(-1, 4))
+        return M.Materials(
+            np.array(rows, np.int64).reshape(-1, 11),
+            np.array(kinds, np.int64), np.array(offs, np.int64), np.array(params, float),
+            np.stack(grids) if grids else np.zeros((1,) + grid_shape),
+            np.stack(filled) if filled else np.zeros((1,) + grid_shape),
+            np.stack(tables) if tables else np.zeros((1, M.TAB_THETA_I,
+                                                      M.TAB_THETA * M.TAB_PHI + 1)),
+            np.array(bind, np.int64).reshape(-1, 4),
+            np.concatenate(tex) if tex else np.zeros(1),
+            np.array(texmeta, np.int64).reshape(-1, 4))
 
 
 class _RGB:

@@ -129,13 +129,12 @@ def _reference_hit(shapes, o, d):
 def _trace(geo, o, d, tmax, any_hit, n=X.PACKET):
     """One packet through the tree: rays (PACKET, 3) from o along d, lanes with tmax < 0 idle,
     the first n traced; returns the rows (t, slot) trace_packet leaves."""
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
     ray = np.ascontiguousarray(np.concatenate([o, d], axis=1).T)
     t = np.array(tmax, dtype=float)
     hit = np.empty(X.PACKET, dtype=np.int64)
-    X.trace_packet(prim, sph, planes, box, child, slots, np.empty(2 * X.STACK, dtype=np.int64),
-                   np.empty(X.LANES), ray, np.empty((3, X.PACKET)),
-                   np.empty(X.PACKET, dtype=np.int64), t, hit, any_hit, n)
+    X.trace_packet(geo, np.empty(2 * X.STACK, dtype=np.int64), np.empty(X.LANES), ray,
+                   np.empty((3, X.PACKET)), np.empty(X.PACKET, dtype=np.int64), t, hit, any_hit,
+                   n)
     return t, hit
 
 
