@@ -309,15 +309,15 @@ class MerlTable(Table):
         return grid_directions()[1]
 
     @functools.cached_property
-    def _grid(self):
+    def grid(self):
         """``values`` as the lookup grid ``(90, 90, 180, 3)`` (a view)."""
         return self.values.reshape(SHAPE + (3,))
 
     @functools.cached_property
-    def _filled(self):
+    def filled(self):
         """The grid with each missing sample replaced by the nearest valid one in index space
         (the lookup's fallback when a whole cell is missing)."""
-        return fill_missing(self._grid)
+        return fill_missing(self.grid)
 
     # -- evaluation ------------------------------------------------------------------------------
     def eval(self, wi, wo, method="linear"):
@@ -347,9 +347,9 @@ class MerlTable(Table):
         out = np.empty((len(wi), 3))
         inside = np.empty(len(wi), dtype=np.bool_)
         if method == "linear":
-            _trilinear(self._grid, self._filled, wi, wo, out, inside)
+            _trilinear(self.grid, self.filled, wi, wo, out, inside)
         else:
-            _nearest(self._grid, self._filled, wi, wo, out, inside)
+            _nearest(self.grid, self.filled, wi, wo, out, inside)
         return out, inside
 
 

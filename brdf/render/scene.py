@@ -706,8 +706,8 @@ class _MaterialTable:
                 row[M.TYPE] = M.MEASURED
                 row[M.SHARE] = i
                 row[M.GRID] = len(grids)
-                grids.append(np.asarray(t._grid, float))
-                filled.append(np.asarray(t._filled, float))
+                grids.append(np.asarray(t.grid, float))
+                filled.append(np.asarray(t.filled, float))
                 tables.append(M.tabulate(t))
             row[[M.K1, M.O1, M.P1, M.B1]] = len(kinds), len(offs), len(params), len(bind)
             rows.append(row)
