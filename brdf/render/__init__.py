@@ -43,7 +43,10 @@ TILE = 32
 PASS_PATHS = 2 ** 22
 #: Peak bytes per pixel of a render with layers: the kernel's sums (RGB, RGB squared, albedo
 #: and normal: 12 float64), the result's mean, variance, albedo and normal and the variance's
-#: temporary (15 float64), then the EXR writer's float32 copies of 12 channels.
+#: temporary (15 float64), then the EXR writer's float32 copies of 12 channels. An upper
+#: bound: the peak resident growth of a 2048 x 2048 render and its EXR, measured 2026-12-04,
+#: was 191 bytes a pixel with layers and 48 without (some temporaries are freed before others
+#: are made).
 PIXEL_BYTES = 8 * (12 + 15) + 4 * 12
 #: The same without layers: the sum and the mean (6 float64) and an 8-bit RGB copy.
 PIXEL_BYTES_RGB = 8 * 6 + 3
