@@ -256,18 +256,12 @@ def refuse_existing(args, *paths):
             raise OutputError(f"{path}: exists; pass --force to replace it")
 
 
-def _write_json(document, path, force):
-    import json
-    from brdf.io import atomic_output
-    with atomic_output(path, force) as tmp:
-        tmp.write_text(json.dumps(document, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-
-
 def fit(args, out):
     """Fit a spec to a table (and sample its posterior with --mcmc); write the JSON report
     atomically; exit 1 unless converged."""
     import brdf
     from brdf.errors import InputError
+    from brdf.fitting.report import save_report
     from .arguments import chain_options
     from .export import export_path, report as export_report
     target = export_path(args)
@@ -293,7 +287,7 @@ def fit(args, out):
         if args.corner:
             post.corner(args.corner, force=args.force)
     if args.output:
-        _write_json(report, args.output, args.force)
+        save_report(report, args.output, args.force)
     exported = target and brdf.export(result, args.export, target, force=args.force)
     if args.json:
         out.json(report if not exported else {**report, "export": exported.to_dict()})
@@ -311,6 +305,7 @@ def compare(args, out):
     """Fit several specs to one table and print them ranked; exit 1 if a fit did not
     converge."""
     import brdf
+    from brdf.fitting.report import save_report
     refuse_existing(args, args.output)
     result = brdf.compare(read_table(args.data), args.specs, by=args.by, loss=args.loss,
                           optimizer=args.optimizer, starts=args.starts,
@@ -319,7 +314,7 @@ def compare(args, out):
                           max_evals=args.max_evals)
     document = result.to_dict()
     if args.output:
-        _write_json(document, args.output, args.force)
+        save_report(document, args.output, args.force)
     if args.json:
         out.json(document)
     else:

@@ -183,6 +183,12 @@ class FitResult:
             "energy": self.energy, "checks": self.checks, "provenance": self.provenance,
             "warnings": list(self.warnings), "verdict": self.verdict, "timing": self.timing})
 
+    def save(self, path, force=False):
+        """Write the JSON report (:meth:`to_dict`) to ``path`` atomically; an existing file
+        is replaced only with ``force`` (see :func:`brdf.fitting.report.save_report`)."""
+        from .report import save_report
+        save_report(self.to_dict(), path, force)
+
     def __str__(self):
         from ..formatting import format_table
         d = self.data

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 from ..errors import FormatError, InputError
 
-__all__ = ["SCHEMA", "FitReport", "load_report", "information_criteria"]
+__all__ = ["SCHEMA", "FitReport", "load_report", "save_report", "information_criteria"]
 
 SCHEMA = "brdf.fit/1"
 _REQUIRED = ("spec", "model", "params", "loss", "metrics", "converged", "data", "provenance")
@@ -122,6 +122,18 @@ def load_report(path):
     except BRDFError as exc:
         raise FormatError(path, "key model", f"a model description ({exc})") from None
     return FitReport(path, model, document)
+
+
+def save_report(document, path, force=False):
+    """Write a report ``document`` (a JSON-ready dict, e.g. :meth:`FitResult.to_dict`) to
+    ``path`` as indented JSON, atomically; an existing file is replaced only with ``force``
+    (otherwise :class:`~brdf.errors.OutputError`). Non-finite numbers are refused, so every
+    JSON reader takes the file."""
+    import json
+    from ..io import atomic_output
+    text = json.dumps(document, indent=2, allow_nan=False) + "\n"
+    with atomic_output(path, force) as tmp:
+        tmp.write_text(text, encoding="utf-8")
 
 
 def information_criteria(metrics, loss_name, values, free):

@@ -45,6 +45,24 @@ def test_a_report_loads_back_as_the_fitted_model(saved):
     assert np.array_equal(r.model.eval(wi, wo), brdf.parse(doc["spec"]).eval(wi, wo))
 
 
+def test_a_result_saves_the_report_the_command_line_writes(tmp_path, table):
+    r = brdf.fit(table, "lambert + ggx(alpha=0.4, ks=0.5)", seed=3)
+    path = tmp_path / "r.json"
+    r.save(path)
+    doc = json.loads(path.read_text())
+    doc.pop("timing")
+    expected = r.to_dict()
+    expected.pop("timing")
+    assert doc == json.loads(json.dumps(expected))
+    assert brdf.load_report(path).model == r.model
+    with pytest.raises(brdf.OutputError, match="exists"):
+        r.save(path)
+    path.write_text("old")
+    r.save(path, force=True)
+    assert json.loads(path.read_text())["spec"] == r.spec
+    assert [p.name for p in tmp_path.iterdir()] == ["r.json"]  # no temporary file left
+
+
 def test_the_schema_table_names_every_key_a_report_has(saved):
     documented = re.findall(r"^``(\w+)``", report_module.__doc__, flags=re.M)
     keys = list(json.loads(saved[1].read_text()))
