@@ -279,12 +279,12 @@ def _compare_parser(sub):
 def _batch_parser(sub):
     p = _subcommand(sub, "batch", commands.batch, "fit one model to many tables",
                     "Fit SPEC to every file GLOB matches (quote it: the command expands it, "
-                    "** included) and write OUTDIR/<stem>.json per file plus OUTDIR/summary.csv "
+                    "recursive patterns included) and write OUTDIR/<stem>.json per file plus OUTDIR/summary.csv "
                     "and summary.json. Runs resume: files whose report matches (input SHA-256, "
                     "spec, options) are skipped; one file's failure does not stop the others. "
                     "Exit status 1 when a file failed or did not converge.",
                     "print the summary as JSON")
-    p.add_argument("inputs", metavar="GLOB", help="input files, e.g. 'scans/**/*.binary'")
+    p.add_argument("inputs", metavar="GLOB", help="input files: paths or a quoted glob pattern")
     p.add_argument("spec", metavar="SPEC", help="the model to fit to each file")
     p.add_argument("-o", "--output", metavar="OUTDIR", required=True,
                    help="folder for the reports and the summary (created if missing)")

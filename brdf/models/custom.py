@@ -101,24 +101,25 @@ class CustomModel(Model):
     ``summary``, and define :meth:`formula`. Parameter values are read as ``self["name"]``
     (float arrays shaped ``()`` or ``(C,)``; choices as strings).
 
-    Attributes a family may set
-    ---------------------------
+    Attributes
+    ----------
     reciprocal, energy_conserving : bool
-        What the family claims (default False: nothing claimed); ``brdf.check`` tests both
+        Set by a family: what it claims (default False: nothing claimed); ``brdf.check`` tests both
         whatever they say, and ``brdf-fit models`` shows them.
     isotropic : bool
-        True when f depends on the azimuths only through their difference. Default False:
+        Set by a family: True when f depends on the azimuths only through their difference. Default False:
         checks then integrate the albedo over incident azimuths too, and the renderer, which
         tabulates custom families on the isotropic MERL grid, refuses the model.
 
-    Methods a family may override
-    -----------------------------
+    Methods
+    -------
     sample_formula(wi, u), pdf_formula(wi, wo)
-        Importance sampling (both or neither); the default is cosine-weighted.
+        A family may override: importance sampling (both or neither); the default is
+        cosine-weighted.
     hint(wi)
-        A cheap albedo estimate for choosing lobes when sampling a sum.
+        A family may override: a cheap albedo estimate for choosing lobes when sampling a sum.
     albedo(wi, ...)
-        The default integrates over the sampler's unit square (see :meth:`albedo`).
+        A family may override: the default integrates over the sampler's unit square (see :meth:`albedo`).
 
     Notes
     -----
