@@ -163,9 +163,13 @@ def _row(path, report_path, status, report=None, error=None):
     return row
 
 
-def _init_worker(threads):
+def _init_worker(threads, settings):
+    """Set up a local worker: its share of the cores and its parent's reporting (quiet,
+    program name)."""
     import numba
+    from ..progress import configure
     numba.set_num_threads(threads)
+    configure(*settings)
 
 
 def _local_pool(jobs):
@@ -173,9 +177,10 @@ def _local_pool(jobs):
     fork do not mix)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
+    from ..progress import current
     threads = max(1, (os.cpu_count() or 1) // jobs)
     return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(threads,))
+                               initializer=_init_worker, initargs=(threads, tuple(current())))
 
 
 def _dask_client(scheduler):
