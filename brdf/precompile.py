@@ -6,7 +6,7 @@ of every kernel group in separate processes, so the groups compile side by side,
 processes (a test suite's workers, the demo's renders, a batch of fits) load them from the cache.
 On a warm cache it costs the processes' start-up only.
 
-    python -m brdf.precompile [GROUP ...]
+    python -m brdf.precompile [GROUP ...]      (or: brdf-fit precompile [GROUP ...])
 
 Without it, the first call of a group's kernels compiles them, after one line on stderr
 (:mod:`brdf.kernel_groups`).
@@ -17,9 +17,10 @@ import time
 
 import numpy as np
 
-from .kernel_groups import announce_first_compiles
+from .kernel_groups import COLD_SECONDS, announce_first_compiles
 
-__all__ = ["GROUPS", "precompile", "compile_groups", "describe", "main"]
+__all__ = ["GROUPS", "check_groups", "precompile", "compile_groups", "starting", "describe",
+           "main"]
 
 _SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
 
@@ -95,12 +96,38 @@ def compile_groups(names):
     return out
 
 
+def starting(names, processes):
+    """What :func:`precompile` is about to do, in a line: the groups, the processes and the
+    time a cold cache takes (a warm one takes seconds)."""
+    batches = _batches(names, processes)
+    cold = max(sum(COLD_SECONDS[g] for g in batch) for batch in batches)
+    return (f"compiling {', '.join(names)} in {len(batches)} "
+            f"process{'es' * (len(batches) > 1)} (about {cold} s on a cold cache, seconds on "
+            "a warm one) ...")
+
+
 def describe(name, took):
     """One line for a group :func:`compile_groups` ran: ``models: compiled 41 kernels in
     38.2 s`` or ``models: loaded from the cache in 1.1 s``."""
     done = (f"compiled {took['compiled']} kernel{'s' * (took['compiled'] != 1)}"
             if took["compiled"] else "loaded from the cache")
     return f"{name}: {done} in {took['seconds']:.1f} s"
+
+
+def _batches(groups, processes):
+    """``groups`` dealt out to at most ``processes`` processes in order, in equal shares."""
+    processes = max(1, min(int(processes), len(groups)))
+    share = -(-len(groups) // processes)
+    return [list(groups[i:i + share]) for i in range(0, len(groups), share)]
+
+
+def check_groups(groups):
+    """InputError naming any of ``groups`` that is not a key of :data:`GROUPS`."""
+    from .errors import InputError
+    unknown = [g for g in groups if g not in GROUPS]
+    if unknown:
+        raise InputError(f"unknown kernel group(s) {', '.join(unknown)}; groups: "
+                         f"{', '.join(GROUPS)}")
 
 
 def precompile(groups=tuple(GROUPS), processes=2):
@@ -121,14 +148,8 @@ def precompile(groups=tuple(GROUPS), processes=2):
     """
     from concurrent.futures import ProcessPoolExecutor
     import multiprocessing
-    from .errors import InputError
-    unknown = [g for g in groups if g not in GROUPS]
-    if unknown:
-        raise InputError(f"unknown kernel group(s) {', '.join(unknown)}; groups: "
-                         f"{', '.join(GROUPS)}")
-    processes = max(1, min(int(processes), len(groups)))
-    share = -(-len(groups) // processes)
-    batches = [list(groups[i:i + share]) for i in range(0, len(groups), share)]
+    check_groups(groups)
+    batches = _batches(groups, processes)
     took = {}
     with ProcessPoolExecutor(len(batches), mp_context=multiprocessing.get_context("spawn")) as pool:
         for done in pool.map(compile_groups, batches):
@@ -142,10 +163,12 @@ def main(argv=None):
     from .errors import InputError
     names = tuple(sys.argv[1:] if argv is None else argv) or tuple(GROUPS)
     try:
-        took = precompile(names)
+        check_groups(names)
     except InputError as exc:
         print(f"brdf.precompile: error: {exc}", file=sys.stderr)
         return 2
+    print(f"brdf.precompile: {starting(names, 2)}", file=sys.stderr, flush=True)
+    took = precompile(names)
     for name, done in took.items():
         print(describe(name, done))
     return 0

@@ -12,7 +12,7 @@ import signal
 import sys
 import textwrap
 
-from . import arguments, commands, demo, export, render
+from . import arguments, commands, demo, export, precompile, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -203,6 +203,7 @@ def build_parser():
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     viz_commands.add_parsers(sub, _subcommand)
     demo.add_parser(sub, _subcommand)
+    precompile.add_parser(sub, _subcommand)
     return parser
 
 

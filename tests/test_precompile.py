@@ -1,5 +1,5 @@
 """brdf.precompile and brdf.kernel_groups: kernel groups compiled (or loaded) in spawned
-processes, and the notice before a group first compiles on use."""
+processes, the notice before a group first compiles on use, and ``brdf-fit precompile``."""
 
 import json
 import os
@@ -16,7 +16,7 @@ import brdf
 from brdf.kernel_groups import COLD_SECONDS, KERNELS, CompileNotice, group_of
 from brdf.precompile import GROUPS, describe, precompile
 from brdf.progress import reporting
-from test_cli import SCRIPT
+from test_cli import SCRIPT, assert_one_error_line, run
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -137,9 +137,38 @@ def test_the_notice_on_a_cold_cache_once(tmp_path):
     assert warm.returncode == 0 and warm.stderr == "" and warm.stdout == cold.stdout
 
 
-def test_python_m_brdf_precompile_says_what_each_group_did():
+# --- brdf-fit precompile ---------------------------------------------------------------------
+
+def test_the_subcommand_compiles_a_group_and_says_how_long(capsys):
+    status, out, err = run(capsys, "precompile", "models", "--json")
+    assert status == 0
+    data = json.loads(out)
+    assert data["processes"] == 1 and list(data["groups"]) == ["models"]
+    assert data["groups"]["models"]["seconds"] > 0.0
+    assert err.startswith("brdf-fit: precompile: compiling models in 1 process (about ")
+    status, out, err = run(capsys, "precompile", "tables", "--processes", "1")
+    assert status == 0 and err.startswith("brdf-fit: precompile: compiling tables")
+    assert re.fullmatch(r"tables: (compiled \d+ kernels?|loaded from the cache) in [\d.]+ s\n",
+                        out)
+    assert run(capsys, "-q", "precompile", "tables") == (0, "", "")
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["precompile", "models", "shaders"], ["unknown kernel group(s) shaders", "models, fitting"]),
+    (["precompile", "--processes", "0"], ["argument --processes", "a process count"]),
+    (["precompile", "--processes", "two"], ["argument --processes", "'two'"]),
+    (["--quiet=yes", "precompile"], ["--quiet"]),
+    (["precompile", "-q=1"], ["-q"]),
+])
+def test_bad_input_to_the_new_options_is_one_line_and_status_2(capsys, argv, fragments):
+    status, out, err = run(capsys, *argv)
+    assert status == 2 and out == ""
+    assert_one_error_line(err, *fragments)
+
+
+def test_python_m_brdf_precompile_still_runs():
     done = subprocess.run([sys.executable, "-m", "brdf.precompile", "fitting"],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    assert re.fullmatch(r"fitting: (compiled \d+ kernels?|loaded from the cache) in [\d.]+ s\n",
-                        done.stdout)
+    assert done.stdout.startswith("fitting: ")
+    assert done.stderr.startswith("brdf.precompile: compiling fitting in 1 process")
