@@ -153,6 +153,13 @@ def test_the_subcommand_compiles_a_group_and_says_how_long(capsys):
     assert run(capsys, "-q", "precompile", "tables") == (0, "", "")
 
 
+def test_the_subcommand_help_names_every_group(capsys):
+    from brdf_cli.precompile import GROUPS_HELP
+    assert GROUPS_HELP == ", ".join(GROUPS)  # written out: --help does not import numba
+    status, out, _ = run(capsys, "precompile", "--help")
+    assert status == 0 and " ".join(GROUPS_HELP.split()) in " ".join(out.split())
+
+
 @pytest.mark.parametrize("argv, fragments", [
     (["precompile", "models", "shaders"], ["unknown kernel group(s) shaders", "models, fitting"]),
     (["precompile", "--processes", "0"], ["argument --processes", "a process count"]),
