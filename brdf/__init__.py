@@ -8,8 +8,8 @@
 __version__ = "0.1.0"
 
 from . import geometry, io, models, radiometry  # noqa: E402
-from .errors import (BRDFError, FormatError, InputError, OutputError, ParameterError,  # noqa: E402
-                     SpecError)
+from .errors import (BRDFError, FormatError, InputError, MainGuardError, OutputError,  # noqa: E402
+                     ParameterError, SpecError)
 from .io import read, write  # noqa: E402
 from .table import Table  # noqa: E402
 from .spec import from_dict, from_json, parse  # noqa: E402
@@ -19,7 +19,8 @@ __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "w
            "measure", "fit", "mcmc", "compare", "export", "batch", "load_report",
            "CustomModel", "register_model", "unregister_model", "Table", "models", "geometry",
            "radiometry", "io",
-           "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError"]
+           "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError",
+           "MainGuardError"]
 
 
 def check(obj, **options):

@@ -189,3 +189,11 @@ def fetch_add(typingctx, counter, value):
         return builder.atomic_rmw("add", first, step, "monotonic")
 
     return types.int64(counter, value), codegen
+
+
+# One line on stderr before a group of kernels first compiles in a process, since that takes
+# a minute and looks hung (brdf.kernel_groups): numba tells of compiles only on a disk-cache
+# miss, so a warm cache runs as before.
+from .kernel_groups import announce_first_compiles  # noqa: E402
+
+announce_first_compiles()

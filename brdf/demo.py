@@ -11,6 +11,7 @@ comparison (BIC) -> emcee posterior of the best fit of the real data -> validati
 """
 
 import base64
+import contextlib
 import html
 import json
 import time
@@ -71,24 +72,26 @@ def _compile_albedo():
     parse("lambert + ggx").albedo_gradient(directions_from_degrees([30.0], [0.0]))
 
 
-class _Stage:
-    """Times a stage, reports it on the progress line and records its seconds in ``times``
-    (``summary.json``'s ``stages``: the first run's include numba's compilation)."""
+#: Stages of a run: reading and synthesising, then per data set its info and checks, fits,
+#: renders and plots, and the posterior of the real measurement
+STAGES = 1 + 4 * 2 + 1
 
-    def __init__(self, log, name, times):
-        self.log, self.name, self.times = log, name, times
 
-    def __enter__(self):
-        self.t = time.perf_counter()
-        self.log(f"{self.name} ...")
-        return self
+class _Stages:
+    """Numbers, times and reports the stages (:func:`brdf.progress.stage`), recording their
+    seconds in ``times`` (``summary.json``'s ``stages``: the first run's include numba's
+    compilation)."""
 
-    def __exit__(self, *exc):
-        self.seconds = time.perf_counter() - self.t
-        self.times[self.name] = self.seconds
-        if exc[0] is None:
-            self.log(f"{self.name}: {self.seconds:.1f} s")
-        return False
+    def __init__(self, progress, times):
+        self.progress, self.times, self.number = progress, times, 0
+
+    @contextlib.contextmanager
+    def __call__(self, name):
+        from .progress import stage
+        self.number += 1
+        with stage(f"demo: {name}", self.progress, self.number, STAGES) as timing:
+            yield
+        self.times[name] = timing["seconds"]
 
 
 def _prepare(outdir, force):
@@ -121,52 +124,56 @@ def _subsample(table, n, seed):
                  channel_names=table.channel_names, metadata=dict(table.metadata))
 
 
-def _datasets(seed, log):
+def _datasets(seed):
     import brdf
     real = brdf.read(_bundled(DATASETS["paper-white"]))
-    log(f"synthetic MERL-size table of {SYNTHETIC_TRUTH}, noise {SYNTHETIC_NOISE}")
     synth = brdf.measure(brdf.parse(SYNTHETIC_TRUTH), "merl", SYNTHETIC_NOISE, seed)
     return {"paper-white": real, "synthetic-merl": synth}
 
 
 def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     """Run the demo into ``outdir``; returns the summary dictionary also written to
-    ``summary.json``. ``quick`` shrinks renders and chains (for tests); ``progress`` prints
-    one line per stage on stderr (default: when stderr is a terminal)."""
-    import sys
+    ``summary.json``. ``quick`` shrinks renders and chains (for tests).
+
+    ``progress`` None (default): on a terminal, a line as each of the :data:`STAGES` stages
+    starts and ends, with the fits' and renders' bars between them; otherwise one line on
+    stderr as each stage ends (``demo: paper-white: validation renders (5 of 10) in 9.3 s``)
+    and one when the run is done; nothing when :func:`brdf.progress.reporting` is quiet.
+    True: as on a terminal; False: nothing."""
     import brdf
+    from .progress import mode, note
     from .render import builtin, render
     from .render.image import false_colour, metrics, tonemap, write_png
     from .viz import albedo_plot, inplane_plot, plot_lobes, residual_plot, save_figure, slice_plot
-    if progress is None:
-        progress = sys.stderr.isatty()
-    log = (lambda s: print(f"brdf-fit demo: {s}", file=sys.stderr)) if progress else (lambda s: None)
+    shown = mode(progress)
+    # the bars of the fits and renders within a stage, on a terminal only: elsewhere the
+    # stage's own line says enough
+    inner = shown == "bar"
     out = _prepare(outdir, force)
     t_start = time.perf_counter()
     compiling = _start_compiling()
     size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
-    times = summary["stages"]
-    with _Stage(log, "read and synthesise", times):
-        data = _datasets(seed, log)
+    stage = _Stages(progress, summary["stages"])
+    with stage("read and synthesise"):
+        data = _datasets(seed)
         _compile_albedo()
     for name, table in data.items():
         entry = summary["datasets"][name] = {"images": {}}
-        with _Stage(log, f"{name}: info and checks", times):
+        with stage(f"{name}: info and checks"):
             entry["info"] = table.summary()
             entry["check"] = brdf.check(table).to_dict()
-        with _Stage(log, f"{name}: fit {len(CANDIDATES)} models (energy constraint), compare",
-                    times):
+        with stage(f"{name}: fit {len(CANDIDATES)} models (energy constraint), compare"):
             comparison = brdf.compare(table, list(CANDIDATES), by="bic", energy_constraint=True,
                                       shared=["ks"] if name == "synthetic-merl" else [],
-                                      seed=seed)
+                                      seed=seed, progress=inner)
         _write_json(out / f"{name}-compare.json", comparison.to_dict())
         entry["compare"] = comparison.to_dict()["models"]
         best = comparison.best
         _write_json(out / f"{name}-fit.json", best.to_dict())
         entry["best"] = str(best.model)
         if name == "paper-white":
-            with _Stage(log, f"{name}: emcee posterior of the best fit", times):
+            with stage(f"{name}: emcee posterior of the best fit"):
                 # the chain runs on a random subset (the fit starts from the full fit's values)
                 post = brdf.mcmc(_subsample(table, 2000 if quick else 5000, seed),
                                  str(best.model), seed=seed, max_steps=600 if quick else 6000,
@@ -174,11 +181,12 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 post.corner(out / f"{name}-corner.png", force=True)
                 entry["posterior"] = post.to_dict()
                 entry["images"]["posterior (corner)"] = f"{name}-corner.png"
-        with _Stage(log, f"{name}: validation renders", times):
+        with stage(f"{name}: validation renders"):
             compiling.join()
             images = {}
             for label, material in (("measured", table), ("fitted", best.model)):
-                r = render(builtin("sphere", material), spp=spp, size=size, seed=seed)
+                r = render(builtin("sphere", material), spp=spp, size=size, seed=seed,
+                           progress=inner)
                 r.save(out / f"{name}-{label}.exr", force=True)
                 write_png(out / f"{name}-{label}.png", tonemap(r.image), force=True)
                 images[label] = r.image
@@ -190,7 +198,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
             entry["images"]["difference (red: fit brighter)"] = f"{name}-difference.png"
             entry["images"]["FLIP error"] = f"{name}-flip.png"
             entry["image_metrics"] = m
-        with _Stage(log, f"{name}: lobes and plots", times):
+        with stage(f"{name}: lobes and plots"):
             plot_lobes(best.model, (30.0, 60.0), data=table, path=out / f"{name}-lobes.png",
                        force=True)
             entry["images"]["3-D lobes of the fit (measured samples as points)"] = \
@@ -207,7 +215,8 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     summary["seconds"] = time.perf_counter() - t_start
     _write_json(out / "summary.json", summary)
     _write_report(out, summary)
-    log(f"done in {summary['seconds']:.0f} s: {out / 'report.html'}")
+    if shown is not None:
+        note(f"demo: done in {summary['seconds']:.0f} s: {out / 'report.html'}")
     return summary
 
 

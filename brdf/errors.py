@@ -34,3 +34,9 @@ class FormatError(BRDFError, ValueError):
 class OutputError(BRDFError, OSError):
     """An output that cannot be written: it exists (and overwriting was not asked for) or its
     folder is missing."""
+
+
+class MainGuardError(BRDFError, RuntimeError):
+    """A script that starts the library's worker processes (``brdf.batch`` with local jobs)
+    from its top level: each spawned worker imports the script again as it starts, so the
+    call must sit under ``if __name__ == "__main__":``."""

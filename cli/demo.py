@@ -22,10 +22,8 @@ def add_parser(sub, subcommand):
 
 
 def demo(args, out):
-    import sys
     from brdf.demo import run
-    summary = run(args.output, seed=args.seed, force=args.force, quick=args.quick,
-                  progress=not out.quiet and sys.stderr.isatty())
+    summary = run(args.output, seed=args.seed, force=args.force, quick=args.quick)
     if args.json:
         out.json(summary)
     else:

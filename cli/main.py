@@ -12,7 +12,7 @@ import signal
 import sys
 import textwrap
 
-from . import arguments, commands, demo, export, render
+from . import arguments, commands, demo, export, precompile, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -94,7 +94,8 @@ def _common(suppress):
     p.add_argument("--debug", action="store_true", default=default,
                    help="show the traceback of errors")
     p.add_argument("-q", "--quiet", action="store_true", default=default,
-                   help="print nothing but --json output and errors (the exit status tells)")
+                   help="print nothing but --json output and errors (the exit status tells): "
+                        "no progress bars or lines, no compile notices")
     p.add_argument("--plugin", action="append", default=argparse.SUPPRESS if suppress else [],
                    metavar="FILE.py|MODULE",
                    help="import a Python file or module that registers custom model families "
@@ -202,6 +203,7 @@ def build_parser():
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     viz_commands.add_parsers(sub, _subcommand)
     demo.add_parser(sub, _subcommand)
+    precompile.add_parser(sub, _subcommand)
     return parser
 
 
@@ -348,8 +350,9 @@ def main(argv=None):
     status = _load_plugins(args)
     if status:
         return status
+    from brdf.progress import reporting
     try:
-        with _terminate_like_interrupt():
+        with _terminate_like_interrupt(), reporting(prog=PROG, quiet=args.quiet):
             return args.handler(args, Output(sys.stdout, args.quiet))
     except Terminated as exc:
         _error(f"terminated by {signal.Signals(exc.signum).name}")

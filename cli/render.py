@@ -95,11 +95,6 @@ def _scene(name, material):
     return builtin(name, material)
 
 
-def _progress(out):
-    import sys
-    return None if out.quiet else sys.stderr.isatty()
-
-
 def render(args, out):
     """Render a material; write the image (and preview) atomically."""
     from brdf import render as R
@@ -107,7 +102,7 @@ def render(args, out):
     png = args.output.lower().endswith(".png")
     result = R.render(_scene(args.scene, load_subject(args.material)), spp=args.spp, size=args.size,
                       seed=args.seed, max_depth=args.max_depth, strategy=args.strategy,
-                      threads=args.threads, progress=_progress(out),
+                      threads=args.threads,
                       layers=args.layers and not png)  # a PNG has no layers to write
     if png:
         result.preview(args.output, args.exposure, force=args.force)
@@ -137,7 +132,7 @@ def validate(args, out):
     fitted = load_subject(args.report)
     metrics = run(data, fitted, args.output, scene=args.scene, spp=args.spp, size=args.size,
                   seed=args.seed, force=args.force, max_depth=args.max_depth,
-                  strategy=args.strategy, threads=args.threads, progress=_progress(out))
+                  strategy=args.strategy, threads=args.threads)
     if args.json:
         out.json(metrics)
     else:

@@ -16,10 +16,17 @@ def pytest_configure(config):
     """Under pytest-xdist (``-n``), compile numba's kernels before the workers start, the
     groups side by side in two processes (brdf.precompile): otherwise every worker compiles
     the same kernels itself when its tests first call them, which on a cold cache is most of
-    the suite's time. On a warm cache this only starts two processes."""
+    the suite's time. On a warm cache this only starts two processes. Then, in every test
+    process, the compile notices are taken as said (see below)."""
     if getattr(config.option, "numprocesses", None) and not hasattr(config, "workerinput"):
         from brdf.precompile import precompile
         precompile(processes=2)
+    # Tests compare stderr exactly, and a kernel compiled on first use in the test process (a
+    # cold cache without -n, a kernel no group compiles) would add its one-line notice there:
+    # take every group's notice as said. Tests of the notice use their own CompileNotice, or
+    # a subprocess.
+    from brdf.kernel_groups import KERNELS, announce_first_compiles
+    announce_first_compiles().announced.update(KERNELS)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -1,6 +1,8 @@
 """The main job end to end (``brdf-fit demo --quick``), its report checked in a headless
-browser: every picture decodes and the tables are there."""
+browser: every picture decodes and the tables are there; off a terminal, one line per stage."""
 
+import contextlib
+import io
 import json
 import re
 import shutil
@@ -14,8 +16,10 @@ from brdf import demo
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
     out = tmp_path_factory.mktemp("demo") / "results"
-    summary = demo.run(out, seed=0, quick=True, progress=False)
-    return out, summary
+    err = io.StringIO()  # not a terminal: the stages' lines
+    with contextlib.redirect_stderr(err):
+        summary = demo.run(out, seed=0, quick=True)
+    return out, summary, err.getvalue()
 
 
 # one worker runs both tests of the demo (README's test command uses --dist loadgroup), so the
@@ -23,7 +27,7 @@ def results(tmp_path_factory):
 @pytest.mark.slow
 @pytest.mark.xdist_group("demo")
 def test_demo_writes_every_stage(results):
-    out, summary = results
+    out, summary, _ = results
     assert set(summary["datasets"]) == {"paper-white", "synthetic-merl"}
     for name, e in summary["datasets"].items():
         assert len(e["compare"]) == len(demo.CANDIDATES)
@@ -50,8 +54,25 @@ def test_demo_writes_every_stage(results):
 
 @pytest.mark.slow
 @pytest.mark.xdist_group("demo")
+def test_demo_prints_one_line_per_stage_off_a_terminal(results):
+    out, summary, err = results
+    numbered = re.compile(r"brdf: demo: (.+) \((\d+) of (\d+)\) in \d+\.\d s")
+    stages = [numbered.fullmatch(line) for line in err.splitlines()]
+    stages = [m for m in stages if m]
+    assert [m.group(1) for m in stages] == list(summary["stages"])
+    assert [int(m.group(2)) for m in stages] == list(range(1, demo.STAGES + 1))
+    assert {m.group(3) for m in stages} == {str(demo.STAGES)}
+    assert err.splitlines()[-1] == (f"brdf: demo: done in {summary['seconds']:.0f} s: "
+                                    f"{out / 'report.html'}")
+    # the rest can only be compile notices, on a cold cache
+    others = [line for line in err.splitlines()[:-1] if not numbered.fullmatch(line)]
+    assert all(line.startswith("brdf: compiling ") for line in others), others
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("demo")
 def test_report_in_a_headless_browser(results):
-    out, summary = results
+    out, summary, _ = results
     browser = shutil.which("chromium") or shutil.which("chromium-browser")
     if browser is None:
         pytest.skip("no chromium: .ci/run installs Debian's chromium for this test")

@@ -1,20 +1,37 @@
-"""brdf.precompile: kernel groups compiled (or loaded) in spawned processes."""
+"""brdf.precompile and brdf.kernel_groups: kernel groups compiled (or loaded) in spawned
+processes, the notice before a group first compiles on use, and ``brdf-fit precompile``."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
+from numba.core.event import Event, EventStatus
 
 import brdf
-from brdf.precompile import GROUPS, precompile
+from brdf.kernel_groups import COLD_SECONDS, KERNELS, CompileNotice, group_of
+from brdf.precompile import GROUPS, describe, precompile
+from brdf.progress import reporting
+from test_cli import SCRIPT, assert_one_error_line, run
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_groups_run_in_worker_processes_and_report_their_seconds():
     took = precompile(("models", "tables"), processes=2)
-    assert list(took) == ["models", "tables"] and all(s > 0.0 for s in took.values())
+    assert list(took) == ["models", "tables"]
+    assert all(t["seconds"] > 0.0 and t["compiled"] >= 0 for t in took.values())
 
 
 def test_an_unknown_group_is_an_input_error():
     with pytest.raises(brdf.InputError, match="unknown kernel group.*models, fitting"):
         precompile(("models", "shaders"))
     assert set(GROUPS) == {"models", "fitting", "tables", "render"}
+    assert set(KERNELS) == set(COLD_SECONDS) == set(GROUPS)
 
 
 def test_the_command_names_a_bad_group_in_one_line(capsys):
@@ -22,3 +39,143 @@ def test_the_command_names_a_bad_group_in_one_line(capsys):
     assert main(["render", "nope"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown kernel group(s) nope" in err
+
+
+def test_describe_says_compiled_or_loaded():
+    assert describe("models", {"seconds": 38.21, "compiled": 41}) == \
+        "models: compiled 41 kernels in 38.2 s"
+    assert describe("render", {"seconds": 1.04, "compiled": 0}) == \
+        "render: loaded from the cache in 1.0 s"
+
+
+# --- the notice before a group first compiles ------------------------------------------------
+
+def _kernel_modules():
+    """Module names of the package's files that compile kernels (import brdf._jit)."""
+    uses_jit = re.compile(r"^from \.+_jit import|^import brdf\._jit", re.M)
+    for path in sorted((ROOT / "brdf").rglob("*.py")):
+        if uses_jit.search(path.read_text(encoding="utf-8")):
+            yield ".".join(path.relative_to(ROOT).with_suffix("").parts)
+
+
+def test_every_kernel_module_belongs_to_a_group():
+    modules = list(_kernel_modules())
+    assert "brdf.models.lambert" in modules and "brdf.render._integrator" in modules
+    assert [m for m in modules if group_of(m) is None] == []
+    assert group_of("brdf.models._kernels") == "models"
+    assert group_of("brdf.render._materials") == "render"
+    assert group_of("brdf.fitting.problem") == "fitting"
+    assert group_of("brdf.triangulation") == "tables"
+    assert group_of("brdf.samplingx") is None and group_of("numpy.linalg") is None
+
+
+def _compile(notice, module, status):
+    function = SimpleNamespace(__module__=module)
+    notice.notify(Event("numba:compile", status,
+                        data={"dispatcher": SimpleNamespace(py_func=function)}))
+
+
+def _compiling(notice, *modules):
+    """Events of a compile of a kernel of ``modules[0]`` within which kernels of the others
+    compile (its callees), one after another."""
+    _compile(notice, modules[0], EventStatus.START)
+    for m in modules[1:]:
+        _compile(notice, m, EventStatus.START)
+        _compile(notice, m, EventStatus.END)
+    _compile(notice, modules[0], EventStatus.END)
+
+
+def test_one_notice_per_group_and_none_for_callees(capsys):
+    notice = CompileNotice()
+    with reporting(prog="brdf-fit"):
+        _compiling(notice, "brdf.render._integrator", "brdf.models._kernels", "brdf.sampling")
+        _compiling(notice, "brdf.render._lights")
+        _compiling(notice, "numba.np.arraymath")  # not ours: neither said nor counted
+        _compiling(notice, "brdf.models.lambert", "brdf.models.microfacet")
+    out, err = capsys.readouterr()
+    assert out == "" and err.splitlines() == [
+        f"brdf-fit: compiling the renderer's kernels once for this machine "
+        f"(up to about {COLD_SECONDS['render']} s) ...",
+        f"brdf-fit: compiling the model kernels once for this machine "
+        f"(up to about {COLD_SECONDS['models']} s) ..."]
+    assert notice.compiled == 6 and notice.announced == {"render", "models"}
+    assert notice.depth == 0
+
+
+def test_quiet_silences_the_notice(capsys):
+    notice = CompileNotice()
+    with reporting(quiet=True):
+        _compiling(notice, "brdf.fitting.problem")
+    assert capsys.readouterr() == ("", "") and notice.compiled == 1
+
+
+def test_no_notice_on_a_warm_cache():
+    """The second run of a command loads every kernel from the cache: not a word on stderr
+    (the first compiles them if the cache is cold)."""
+    for _ in range(2):
+        done = subprocess.run([SCRIPT, "eval", "lambert", "--wi", "30,0", "--wo", "30,180"],
+                              capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+    assert done.stderr == "" and "0.15915" in done.stdout
+
+
+@pytest.mark.slow
+def test_the_notice_on_a_cold_cache_once(tmp_path):
+    """A throwaway cache (numba's own locator for NUMBA_CACHE_DIR before the package's in-tree
+    one): the first run compiles and says so in one line, the second loads and is silent."""
+    env = {**os.environ, "NUMBA_CACHE_LOCATOR_CLASSES": "UserProvidedCacheLocator",
+           "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    argv = [SCRIPT, "eval", "lambert", "--wi", "30,0", "--wo", "30,180", "--json"]
+    cold = subprocess.run(argv, capture_output=True, text=True, timeout=900, env=env)
+    assert cold.returncode == 0, cold.stderr
+    assert cold.stderr.splitlines() == [
+        f"brdf-fit: compiling the model kernels once for this machine "
+        f"(up to about {COLD_SECONDS['models']} s) ..."]
+    assert json.loads(cold.stdout)["f"]
+    assert list((tmp_path / "cache").rglob("*.nbi"))
+    warm = subprocess.run(argv, capture_output=True, text=True, timeout=600, env=env)
+    assert warm.returncode == 0 and warm.stderr == "" and warm.stdout == cold.stdout
+
+
+# --- brdf-fit precompile ---------------------------------------------------------------------
+
+def test_the_subcommand_compiles_a_group_and_says_how_long(capsys):
+    status, out, err = run(capsys, "precompile", "models", "--json")
+    assert status == 0
+    data = json.loads(out)
+    assert data["processes"] == 1 and list(data["groups"]) == ["models"]
+    assert data["groups"]["models"]["seconds"] > 0.0
+    assert err.startswith("brdf-fit: precompile: compiling models in 1 process (about ")
+    status, out, err = run(capsys, "precompile", "tables", "--processes", "1")
+    assert status == 0 and err.startswith("brdf-fit: precompile: compiling tables")
+    assert re.fullmatch(r"tables: (compiled \d+ kernels?|loaded from the cache) in [\d.]+ s\n",
+                        out)
+    assert run(capsys, "-q", "precompile", "tables") == (0, "", "")
+
+
+def test_the_subcommand_help_names_every_group(capsys):
+    from brdf_cli.precompile import GROUPS_HELP
+    assert GROUPS_HELP == ", ".join(GROUPS)  # written out: --help does not import numba
+    status, out, _ = run(capsys, "precompile", "--help")
+    assert status == 0 and " ".join(GROUPS_HELP.split()) in " ".join(out.split())
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["precompile", "models", "shaders"], ["unknown kernel group(s) shaders", "models, fitting"]),
+    (["precompile", "--processes", "0"], ["argument --processes", "a process count"]),
+    (["precompile", "--processes", "two"], ["argument --processes", "'two'"]),
+    (["--quiet=yes", "precompile"], ["--quiet"]),
+    (["precompile", "-q=1"], ["-q"]),
+])
+def test_bad_input_to_the_new_options_is_one_line_and_status_2(capsys, argv, fragments):
+    status, out, err = run(capsys, *argv)
+    assert status == 2 and out == ""
+    assert_one_error_line(err, *fragments)
+
+
+def test_python_m_brdf_precompile_still_runs():
+    done = subprocess.run([sys.executable, "-m", "brdf.precompile", "fitting"],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("fitting: ")
+    assert done.stderr.startswith("brdf.precompile: compiling fitting in 1 process")

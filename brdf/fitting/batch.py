@@ -22,8 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import arguments
-from ..errors import BRDFError, InputError
-from ..progress import bar as progress_bar
+from ..errors import BRDFError, InputError, MainGuardError
+from ..progress import task
 
 __all__ = ["batch", "BatchResult", "STATUSES"]
 
@@ -163,19 +163,45 @@ def _row(path, report_path, status, report=None, error=None):
     return row
 
 
-def _init_worker(threads):
+def _init_worker(threads, started, settings):
+    """Set up a local worker, once it has started: its share of the cores, its parent's
+    reporting (quiet, program name), and one more on the count of started workers."""
     import numba
+    from ..progress import configure
     numba.set_num_threads(threads)
+    configure(*settings)
+    with started.get_lock():
+        started.value += 1
 
 
 def _local_pool(jobs):
     """A process pool of ``jobs`` workers sharing the cores (spawned: numba's threads and
-    fork do not mix)."""
+    fork do not mix), and the shared count of its workers that finished starting."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
+    from ..progress import current
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    return ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_init_worker, initargs=(threads,))
+    context = multiprocessing.get_context("spawn")
+    started = context.Value("i", 0)
+    pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker,
+                               initargs=(threads, started, tuple(current())))
+    return pool, started
+
+
+def _starting_a_worker():
+    """Whether this process is a spawned worker still importing its parent's main module
+    (the script): it reached :func:`batch` from the script's top level. multiprocessing
+    marks that phase with this attribute, and refuses to start processes in it."""
+    import multiprocessing
+    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
+
+
+def _unguarded_main(script):
+    """The error for workers that all died while starting: each one ran the script's top
+    level again (spawn imports it), which must not call brdf.batch."""
+    return MainGuardError(f"worker processes stopped as they started: each runs the top level "
+                          f"of {script or 'the main script'} again, so brdf.batch must be "
+                          "called under 'if __name__ == \"__main__\":'")
 
 
 def _dask_client(scheduler):
@@ -209,10 +235,19 @@ def _submit(todo, spec, options, jobs, scheduler):
             yield p, fit_file(p, spec, options, plugins)
     else:
         from concurrent.futures import as_completed
-        with _local_pool(jobs) as pool:
-            futures = {pool.submit(fit_file, p, spec, options, plugins): p for p in todo}
-            for future in as_completed(futures):
-                yield futures[future], future.result()
+        from concurrent.futures.process import BrokenProcessPool
+        pool, started = _local_pool(jobs)
+        try:
+            with pool:
+                futures = {pool.submit(fit_file, p, spec, options, plugins): p for p in todo}
+                for future in as_completed(futures):
+                    yield futures[future], future.result()
+        except BrokenProcessPool:
+            if started.value:  # a worker died after starting: not the main module's doing
+                raise
+            import sys
+            script = getattr(sys.modules.get("__main__"), "__file__", None)
+            raise _unguarded_main(script and os.path.basename(script)) from None
 
 
 def _write_summary(result, outdir):
@@ -251,14 +286,27 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
     force : bool
         Refit inputs that have a report already.
     progress : bool, optional
-        Progress bar over files on stderr (default: when stderr is a terminal).
+        None (default): a bar over files on stderr when it is a terminal, otherwise one line
+        per file as it is done (``batch: t1.csv fitted (2 of 3) after 4.1 s``) and one at
+        the end; True: the bar; False: nothing (see :mod:`brdf.progress`).
     loss, optimizer, starts, energy_constraint, cutoff, shared, fix, bounds, seed, max_evals
         As for :func:`brdf.fit` (the same default starts), the same for every input.
 
     Returns
     -------
     BatchResult
+
+    Raises
+    ------
+    MainGuardError
+        When local workers die as they start because the calling script runs this call at
+        its top level: spawned workers import the script again, so the call belongs under
+        ``if __name__ == "__main__":``.
     """
+    if _starting_a_worker():
+        # the script's top level, run again in a worker as it starts: end this worker quietly
+        # (the parent raises MainGuardError) rather than with multiprocessing's traceback
+        raise SystemExit(1)
     from ..io import atomic_output
     from ..spec import parse
     from . import losses
@@ -286,8 +334,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
                             "another input, spec or options; pass --force to refit"))
         else:
             todo.append(p)
-    bar = progress_bar(len(todo), "batch", "file", progress)
-    try:
+    with task(len(todo), "batch", "file", progress) as meter:
         for p, (report, error) in _submit(todo, spec, options, jobs or os.cpu_count() or 1,
                                           scheduler):
             target = outdir / names[p]
@@ -299,11 +346,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
                                    encoding="utf-8")
                 status = "fitted" if report["converged"] else "not-converged"
                 rows[p] = _row(p, target, status, report)
-            if bar is not None:
-                bar.update(1)
-    finally:
-        if bar is not None:
-            bar.close()
+            meter.done(f"{Path(p).name} {rows[p]['status']}")
     result = BatchResult(tuple(rows[p] for p in paths), str(outdir))
     _write_summary(result, outdir)
     return result

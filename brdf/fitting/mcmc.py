@@ -34,7 +34,7 @@ import numpy as np
 from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
-from ..progress import bar as progress_bar
+from ..progress import task
 
 __all__ = ["mcmc", "Posterior", "LogPosterior", "NOISE", "TAU_MULTIPLE", "PERCENTILES", "MOVES"]
 
@@ -365,15 +365,15 @@ def _save_chain(sampler, post, chain, tmp, force):
                      burn=post.burn, thin=post.thin, tau=post.tau)
 
 
-def _run(sampler, p0, max_steps, bar):
-    """Grow the chain until converged or ``max_steps``: ``(steps, tau, converged, verdict)``."""
+def _run(sampler, p0, max_steps, meter):
+    """Grow the chain until converged or ``max_steps``: ``(steps, tau, converged, verdict)``;
+    ``meter`` (a :class:`brdf.progress.Task`) counts the steps."""
     state, steps, last = p0, 0, None
     while steps < max_steps:
         chunk = min(max(FIRST_CHECK, steps // 10), max_steps - steps)
         state = sampler.run_mcmc(state, chunk, progress=False)
         steps += chunk
-        if bar is not None:
-            bar.update(chunk)
+        meter.update(chunk)
         tau = sampler.get_autocorr_time(tol=0)
         settled = last is not None and np.all(np.abs(tau - last) < TAU_STABLE * tau)
         if np.all(np.isfinite(tau)) and steps > TAU_MULTIPLE * tau.max() and settled:
@@ -426,7 +426,9 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     force : bool
         Replace an existing chain file.
     progress : bool, optional
-        Progress bar on stderr (default: when stderr is a terminal).
+        None (default): a bar on stderr when it is a terminal, otherwise one line when the
+        chain ends (``mcmc: 2400 steps in 12.0 s``); True: the bar; False: nothing (see
+        :mod:`brdf.progress`). The same for the fit of a spec given as ``start``.
 
     Returns
     -------
@@ -440,7 +442,9 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     proposals, described = _moves(moves)
     backend, tmp = _chain_backend(chain, force)
     table = as_table(data)
-    result, problem, x_opt = _start_fit(table, start, seed, fit_options)
+    # a spec's fit first reports its progress as the chain will
+    result, problem, x_opt = _start_fit(table, start, seed,
+                                        {"progress": progress, **fit_options})
     logpost = LogPosterior(problem, x_opt)
     nwalkers = _walkers(walkers, logpost.dim)
     if nwalkers < DE_WALKERS and any(isinstance(m, (emcee.moves.DEMove,
@@ -452,17 +456,14 @@ def mcmc(data, start, *, walkers=None, max_steps=DEFAULT_MAX_STEPS, seed=0, move
     sampler = emcee.EnsembleSampler(nwalkers, logpost.dim, logpost, vectorize=True,
                                     backend=backend, moves=proposals)
     sampler.random_state = state.get_state()
-    bar = progress_bar(max_steps, "mcmc", "step", progress)
     try:
-        steps, tau, converged, verdict = _run(sampler, logpost.start(x_opt, nwalkers, rng),
-                                              int(max_steps), bar)
+        with task(max_steps, "mcmc", "step", progress) as meter:
+            steps, tau, converged, verdict = _run(sampler, logpost.start(x_opt, nwalkers, rng),
+                                                  int(max_steps), meter)
     except BaseException:
         if tmp is not None:
             tmp.unlink(missing_ok=True)
         raise
-    finally:
-        if bar is not None:
-            bar.close()
     burn = min(int(2 * tau.max()), steps // 2)
     thin = max(1, int(0.5 * tau.min()))
     draws_x = sampler.get_chain(discard=burn, thin=thin, flat=True)

@@ -25,7 +25,7 @@ import numpy as np
 from .. import arguments
 from .._threads import serial_below
 from ..errors import InputError
-from ..progress import bar as progress_bar
+from ..progress import task
 from ..io import as_table
 from . import losses
 from .mixed_problem import problem_for
@@ -259,9 +259,8 @@ class _Objective:
             else:
                 loss = self.problem.loss(x)
         self.tracker.record(x, "loss", loss)
-        if self.progress is not None:
-            self.progress.update(1)
-            self.progress.set_postfix(loss=f"{loss:.4g}", refresh=False)
+        self.progress.update(1)
+        self.progress.set_postfix(loss=f"{loss:.4g}")
         return loss
 
 
@@ -587,7 +586,9 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
     tol : float
         Relative tolerance on the loss (nlopt ftol_rel; xtol_rel is its square root).
     progress : bool, optional
-        Show a progress bar on stderr (default: when stderr is a terminal).
+        None (default): a bar on stderr when it is a terminal, otherwise one line when the
+        fit ends (``fit: 853 evals in 2.1 s``); True: the bar; False: nothing (see
+        :mod:`brdf.progress`).
 
     Returns
     -------
@@ -604,18 +605,14 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
     prepared = time.perf_counter()
     angles = energy_angles(problem.base) if energy_constraint else None
     runs = 2 if OPTIMIZERS[optimizer][1] == "global" else starts + MODE_POLISHES
-    bar = progress_bar(runs * max_evals, "fit", "eval", progress)
-    options = {"max_evals": max_evals, "tol": tol, "seed": seed, "progress": bar}
-    try:
+    with task(runs * max_evals, "fit", "eval", progress) as meter:
+        options = {"max_evals": max_evals, "tol": tol, "seed": seed, "progress": meter}
         x, records, ends = _runs(problem, optimizer, starts, angles, options)
         optimized = time.perf_counter()
         report = check(problem.model(x))
         if angles is not None:
             x, report, angles = _refine_energy(problem, optimizer, x, angles, report, records,
                                                options)
-    finally:
-        if bar is not None:
-            bar.close()
     metrics = problem.metrics(x)
     warnings = _warnings(problem, x, metrics[problem.loss_name], ends, records)
     end = time.perf_counter()

@@ -22,7 +22,7 @@ import numpy as np
 from .. import arguments
 from ..arguments import integer, shown
 from ..errors import InputError
-from ..progress import bar as progress_bar
+from ..progress import task
 from ..memory import require
 from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Material, Mesh,
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
@@ -167,7 +167,9 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         Worker threads, at least 1 (default: numba's, all cores; more than numba's count
         means numba's count). The image does not depend on it.
     progress : bool, optional
-        A progress bar on stderr (default: only when stderr is a terminal).
+        None (default): a bar on stderr when it is a terminal, otherwise one line when the
+        render ends (``render: 64 spp in 3.1 s``); True: the bar; False: nothing (see
+        :mod:`brdf.progress`).
     layers : bool
         Also estimate the per-pixel variance and the first-hit albedo and normal (default).
         False leaves them None and renders a few per cent faster; the image is the same to
@@ -207,22 +209,19 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         render_pass(*args, probe, seed, 0, 1, Sums(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
                                                    np.zeros((1, 1, 6))))
         compile_seconds = time.perf_counter() - t0
-        bar = progress_bar(int(spp), "render", "spp", progress)
-        t0 = time.perf_counter()
-        # fewer, longer passes spend less on each tile's last bounces, when its packet runs
-        # part-empty (2^20 paths a pass: 4-7 % slower at 256 x 256 x 64). The passes never
-        # depend on the bar: a path's packet mates change its last bits
-        chunk = max(1, min(int(spp), PASS_PATHS // max(w * h, 1)))
-        for s0 in range(0, int(spp), chunk):
-            s1 = min(int(spp), s0 + chunk)
-            render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov))
-            if bar is not None:
-                bar.update(s1 - s0)
-        seconds = time.perf_counter() - t0
+        with task(int(spp), "render", "spp", progress, units="spp") as meter:
+            t0 = time.perf_counter()
+            # fewer, longer passes spend less on each tile's last bounces, when its packet runs
+            # part-empty (2^20 paths a pass: 4-7 % slower at 256 x 256 x 64). The passes never
+            # depend on the bar: a path's packet mates change its last bits
+            chunk = max(1, min(int(spp), PASS_PATHS // max(w * h, 1)))
+            for s0 in range(0, int(spp), chunk):
+                s1 = min(int(spp), s0 + chunk)
+                render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov))
+                meter.update(s1 - s0)
+            seconds = time.perf_counter() - t0
     finally:
         numba.set_num_threads(old)
-        if 'bar' in locals() and bar is not None:
-            bar.close()
     n = float(spp)
     mean = acc / n
     if not layers:

@@ -1,6 +1,8 @@
 """brdf.batch: one report per file, resume, a bad file among good ones, a Dask cluster."""
 
 import json
+import subprocess
+import sys
 
 import pytest
 
@@ -80,3 +82,59 @@ def test_batch_runs_on_a_dask_cluster(folder):
 def test_a_glob_matching_nothing_is_an_input_error(tmp_path):
     with pytest.raises(brdf.InputError, match="no input file matches"):
         brdf.batch(str(tmp_path / "*.binary"), SPEC, tmp_path / "out")
+
+
+# --- a script without the main guard ----------------------------------------------------------
+
+SCRIPT = """import sys
+import brdf
+
+result = brdf.batch(sys.argv[1], "lambert", sys.argv[2], jobs=2, starts=1, progress=False)
+print("statuses", *[row["status"] for row in result.rows])
+"""
+
+
+def _script(folder, guarded):
+    body = SCRIPT if not guarded else SCRIPT.replace(
+        "\nresult", '\nif __name__ == "__main__":\n    result').replace("\nprint", "\n    print")
+    path = folder / ("guarded.py" if guarded else "unguarded.py")
+    path.write_text(body, encoding="utf-8")
+    return subprocess.run([sys.executable, str(path), str(folder / "t*.csv"), str(folder / "out")],
+                          capture_output=True, text=True, timeout=600, cwd=folder)
+
+
+def test_a_script_without_the_main_guard_gets_one_line_saying_what_to_add(folder):
+    """batch's workers are spawned: each imports the script again as it starts, which at its
+    top level calls batch again. The workers end quietly and the script gets MainGuardError
+    (not BrokenProcessPool after a traceback per worker)."""
+    done = _script(folder, guarded=False)
+    assert done.returncode == 1 and "statuses" not in done.stdout
+    assert done.stderr.splitlines()[-1] == (
+        "brdf.errors.MainGuardError: worker processes stopped as they started: each runs "
+        "the top level of unguarded.py again, so brdf.batch must be called under "
+        "'if __name__ == \"__main__\":'")
+    assert done.stderr.count("Traceback") == 1
+    assert "BrokenProcessPool" not in done.stderr and "bootstrapping" not in done.stderr
+    assert not (folder / "out" / "t0.json").exists()
+
+
+def test_the_same_script_with_the_main_guard_runs(folder):
+    done = _script(folder, guarded=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["statuses", "fitted", "fitted"]
+    assert done.stderr == ""
+
+
+def test_workers_failing_earlier_in_the_script_get_the_same_line(folder):
+    """Here the workers stop at the script's own work before the call (writing a file that the
+    parent wrote, without force): their tracebacks are the script's, and the last line still
+    says what to add."""
+    path = folder / "writes_first.py"
+    path.write_text(SCRIPT.replace("\nresult", '\nbrdf.write(brdf.read("t0.csv"), "copy.csv")'
+                                                '\nresult'), encoding="utf-8")
+    done = subprocess.run([sys.executable, str(path), str(folder / "t*.csv"),
+                           str(folder / "out")], capture_output=True, text=True, timeout=600,
+                          cwd=folder)
+    assert done.returncode == 1 and "statuses" not in done.stdout
+    assert done.stderr.splitlines()[-1].startswith("brdf.errors.MainGuardError: worker processes "
+                                                   "stopped as they started")

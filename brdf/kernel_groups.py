@@ -1,0 +1,95 @@
+"""The library's numba kernels in groups, and the line printed before a group first compiles.
+
+numba compiles a kernel on its first call unless its disk cache holds it; on a cold cache a
+group's kernels take a minute or more, and the process looks hung meanwhile.
+:class:`CompileNotice`, which :mod:`brdf._jit` installs, prints one line on stderr before
+that happens, once per group and process, saying what compiles and about how long it takes.
+It hears of compiles from numba's ``numba:compile`` events, which numba raises only when a
+kernel is not in its disk cache: a warm cache prints nothing and costs nothing.
+:mod:`brdf.precompile` compiles the groups ahead of use.
+
+This module imports no kernels, so editing it leaves the cache valid (see :mod:`brdf._jit`).
+"""
+
+from numba.core import event
+
+__all__ = ["KERNELS", "COLD_SECONDS", "group_of", "CompileNotice", "announce_first_compiles"]
+
+#: What each group's kernels are called in the notice, and the modules that hold them (a
+#: module name, or a package's prefix ending in a dot).
+KERNELS = {"models": ("the model kernels", ("brdf.models.", "brdf.sampling", "brdf._directions")),
+           "fitting": ("the fitting kernels", ("brdf.fitting.",)),
+           "tables": ("the measured-table kernels", ("brdf.io.", "brdf.triangulation")),
+           "render": ("the renderer's kernels", ("brdf.render.",))}
+
+#: Seconds a cold compile of each group alone took, rounded up to 5 s:
+#: ``brdf.precompile.compile_groups([group])`` in a fresh process with an empty cache
+#: (NUMBA_CACHE_LOCATOR_CLASSES=UserProvidedCacheLocator, a new NUMBA_CACHE_DIR), one group
+#: after another, on the 2-core development host while a benchmark kept it busy (load average
+#: 5-6): models 103.9 s, fitting 41.6 s, tables 18.6 s, render 64.6 s. A first command
+#: compiles only the kernels it calls, at most its group's.
+COLD_SECONDS = {"models": 105, "fitting": 45, "tables": 20, "render": 65}
+
+
+def group_of(module):
+    """The kernel group of a module's kernels (``"brdf.models.lambert"``: ``"models"``), or
+    None for a module outside them."""
+    for group, (_, modules) in KERNELS.items():
+        if any(module.startswith(m) if m.endswith(".") else module == m for m in modules):
+            return group
+    return None
+
+
+def _module_of(compile_event):
+    function = getattr(compile_event.data.get("dispatcher"), "py_func", None)
+    return getattr(function, "__module__", None) or ""
+
+
+class CompileNotice(event.Listener):
+    """Listens to numba's compiles of this package's kernels (``numba:compile`` events, which
+    numba raises only when a kernel is not in its disk cache).
+
+    Before the first compile of each group in this process, one line on stderr
+    (:func:`brdf.progress.note`, silenced by ``quiet``): ``compiling the model kernels once
+    for this machine (up to about 105 s) ...``, the group's :data:`COLD_SECONDS` (a command
+    may need only part of the group). A kernel's callees compile within its own compile;
+    they count as its work and print nothing of their own.
+
+    Attributes
+    ----------
+    compiled : int
+        Kernels of this package numba compiled in this process (callees included).
+    announced : set of str
+        Groups whose notice was printed.
+    """
+
+    def __init__(self):
+        self.compiled, self.announced, self.depth = 0, set(), 0
+
+    def on_start(self, compile_event):
+        group = group_of(_module_of(compile_event))
+        if group is None:
+            return
+        if self.depth == 0 and group not in self.announced:
+            from .progress import note
+            self.announced.add(group)
+            note(f"compiling {KERNELS[group][0]} once for this machine "
+                 f"(up to about {COLD_SECONDS[group]} s) ...")
+        self.depth += 1
+        self.compiled += 1
+
+    def on_end(self, compile_event):
+        if group_of(_module_of(compile_event)) is not None:
+            self.depth -= 1
+
+
+_notice = None
+
+
+def announce_first_compiles():
+    """The process's :class:`CompileNotice`, listening to numba from the first call on."""
+    global _notice
+    if _notice is None:
+        _notice = CompileNotice()
+        event.register("numba:compile", _notice)
+    return _notice
