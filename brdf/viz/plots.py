@@ -1,7 +1,8 @@
 """The 2-D plots BRDF analysts expect, with matplotlib: in-plane polar lobes of measurements
 against a fit, the theta_h / theta_d image slice in the MERL layout, directional albedo against
-theta_i, residual maps of a fit over a table's samples, and the posterior's corner plot and
-predictive bands (drawn from :class:`brdf.fitting.mcmc.Posterior`).
+theta_i, residual maps of a fit over a table's samples, the posterior's corner plot and
+predictive bands (drawn from :class:`brdf.fitting.mcmc.Posterior`), and the validation renders
+of a table and its fit in one figure (measured | fitted | difference | FLIP).
 
 Each function returns a :class:`matplotlib.figure.Figure` built without pyplot, so no window
 system or backend choice is involved (PNGs are drawn by Agg); :func:`save_figure` writes one
@@ -19,7 +20,7 @@ from .samples import (channel_count, channel_label, channel_values, in_plane,
                       in_plane_directions, incidence, is_table, label, samples_near)
 
 __all__ = ["inplane_plot", "slice_plot", "albedo_plot", "residual_plot", "corner_plot",
-           "predictive_plot", "save_figure", "F_LABEL"]
+           "predictive_plot", "validation_figure", "save_figure", "F_LABEL"]
 
 F_LABEL = "f_r [1/sr]"
 #: Decades below the peak that a log-scale polar plot shows.
@@ -32,6 +33,8 @@ SCATTER_POINTS = 20000
 #: Line colours of successive incidence angles or subjects (matplotlib's tab10).
 CYCLE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
          "#7f7f7f", "#bcbd22", "#17becf")
+#: Narrowest panel of :func:`validation_figure`, in pixels at the figure's dpi.
+MIN_PANEL_PIXELS = 256
 #: Colours of named channels.
 CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
 
@@ -370,4 +373,105 @@ def predictive_plot(posterior, data=None, *, theta_i=30.0, draws=100, seed=0, ch
         ax.grid(alpha=0.3)
     # the bands are per channel: no channel choice in the title
     fig.suptitle(textwrap.fill(f"{label(model)}, posterior predictive", 140), fontsize=9)
+    return fig
+
+
+# -- validation renders -----------------------------------------------------------------------
+
+def _percent(fraction):
+    """A share of pixels for a legend: ``0 %``, ``< 0.1 %``, ``2.4 %``."""
+    if fraction == 0:
+        return "0 %"
+    return "< 0.1 %" if fraction < 0.001 else f"{100 * fraction:.2g} %"
+
+
+def _radiance_bar(fig, ax, top, clipped):
+    """The colour bar of a tone-mapped render: linear radiance 0 to ``top`` through the same
+    sRGB encoding as :func:`brdf.render.image.tonemap`, grey; ``clipped`` is the share of
+    pixels with a channel above ``top`` (drawn white)."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
+    from ..render.image import tonemap
+    ramp = tonemap(np.linspace(0.0, 1.0, 256)) / 255.0
+    grey = ListedColormap(np.repeat(ramp[:, None], 3, axis=1))
+    bar = fig.colorbar(ScalarMappable(Normalize(0.0, top), grey), ax=ax, location="bottom",
+                       extend="max" if clipped else "neither", shrink=0.9)
+    bar.set_label(f"radiance per channel (linear), sRGB display\nabove {top:.3g} clipped to "
+                  f"white:\n{_percent(clipped)} of pixels", fontsize=8)
+    return bar
+
+
+def validation_figure(measured, fitted, *, flip=None, exposure=0.0, title=None, dpi=100):
+    """Measured | fitted | difference | FLIP: the validation renders of a table and its fit
+    (the same scene and seed, :func:`brdf.render.validate`) in one figure, each panel with its
+    colour bar.
+
+    The two renders share a tone mapping (:func:`brdf.render.image.tonemap` at ``exposure``;
+    the bar says how many pixels it clips); the difference is the luminance of fitted minus
+    measured in blue (fit darker) to red (fit brighter), clipped at
+    :func:`brdf.render.image.difference_scale`; FLIP is the per-pixel HDR-FLIP error of the
+    fit against the measurement, 0 to 1.
+
+    Parameters
+    ----------
+    measured, fitted : ndarray (h, w, 3)
+        Linear RGB radiance (``RenderResult.image``).
+    flip : ndarray (h, w), optional
+        The per-pixel FLIP error (default: :func:`brdf.render.image.flip_error`).
+    exposure : float
+        Stops, as :func:`~brdf.render.image.tonemap`.
+    title : str, optional
+        A title above the panels (the scene, its settings, the metrics).
+    dpi : int
+        The resolution the figure will be saved at: the panels are sized so that a render
+        keeps about its own pixels.
+    """
+    from ..render.image import (DIFFERENCE_PERCENTILE, difference_scale, flip_error, luminance,
+                                tonemap)
+    measured = np.asarray(measured, float)
+    fitted = np.asarray(fitted, float)
+    if measured.shape != fitted.shape or measured.ndim != 3 or measured.shape[-1] != 3:
+        raise InputError(f"expected two linear RGB images (h, w, 3) of one size, got shapes "
+                         f"{measured.shape} and {fitted.shape}")
+    if flip is None:
+        flip = flip_error(fitted, measured)[1]
+    height, width = measured.shape[:2]
+    # each panel about the render's own size (at least MIN_PANEL_PIXELS wide, so that a small
+    # render still leaves room for its bar's labels), plus the bars below and the titles
+    panel = max(width, MIN_PANEL_PIXELS) / dpi
+    size = np.round(np.array([4 * panel + 0.6, panel * height / width + 1.6
+                              + (0.3 if title else 0.0)]) * dpi) / dpi  # whole pixels
+    fig = _figure(*size)
+    axes = fig.subplots(1, 4)
+    top = 2.0 ** -float(exposure)
+    for ax, image, name in ((axes[0], measured, "measured (the table rendered)"),
+                            (axes[1], fitted, "fitted (the model rendered)")):
+        ax.imshow(tonemap(image, exposure), interpolation="antialiased")
+        ax.set_title(name, fontsize=9)
+        _radiance_bar(fig, ax, top, float(np.mean(np.any(image > top, axis=-1))))
+    diff = luminance(fitted - measured)
+    scale = difference_scale(diff)
+    clipped = float(np.mean(np.abs(diff) > scale))
+    shown = axes[2].imshow(diff, cmap="bwr", vmin=-scale, vmax=scale,
+                           interpolation="antialiased")
+    axes[2].set_title("difference: fitted - measured\n(red: fit brighter, blue: darker)",
+                      fontsize=9)
+    bar = fig.colorbar(shown, ax=axes[2], location="bottom", shrink=0.9,
+                       extend="both" if clipped else "neither")
+    bar.set_label(f"luminance difference (linear)\nclipped at ±{scale:.3g} (the "
+                  f"{DIFFERENCE_PERCENTILE:g}th percentile):\n{_percent(clipped)} of pixels "
+                  "beyond", fontsize=8)
+    error = np.asarray(flip, float).reshape(height, width)
+    shown = axes[3].imshow(error, cmap="magma", vmin=0.0, vmax=1.0,
+                           interpolation="antialiased")
+    axes[3].set_title(f"FLIP error of the fit (mean {float(np.mean(error)):.4g})", fontsize=9)
+    bar = fig.colorbar(shown, ax=axes[3], location="bottom", shrink=0.9)
+    bar.set_label("HDR-FLIP per pixel\n0: no visible difference\n1: the largest", fontsize=8)
+    for ax in axes:
+        # a frame, no ticks: the white of a zero difference still has an edge
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if title:
+        # at most about 7.5 pixels a character at 9 points
+        fig.suptitle(textwrap.fill(title, int(fig.get_figwidth() * dpi / 7.5)), fontsize=9)
     return fig

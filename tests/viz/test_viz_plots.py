@@ -8,8 +8,9 @@ import pytest
 
 import brdf
 from brdf.errors import InputError, OutputError
+from brdf.render.image import flip_error, luminance
 from brdf.viz import (albedo_plot, corner_plot, inplane_plot, predictive_plot, residual_plot,
-                      save_figure, slice_plot)
+                      save_figure, slice_plot, validation_figure)
 from pictures import distinct_colours, drawn_fraction, read_png
 
 MODEL = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, ks=0.6)"
@@ -145,3 +146,39 @@ def test_save_figure_is_atomic_and_keeps_existing_files(tmp_path, model):
 def test_a_missing_channel_is_a_one_line_error(model):
     with pytest.raises(InputError, match="channel 7 does not exist"):
         slice_plot(model, channel=7)
+
+
+def test_validation_figure_shows_four_panels_each_with_its_scale(tmp_path):
+    rng = np.random.default_rng(1)
+    measured = np.full((40, 50, 3), 0.5)
+    measured[:5] = 2.0                               # 12.5 % of the pixels above white
+    fitted = measured + rng.normal(0.0, 0.01, measured.shape)
+    fig = validation_figure(measured, fitted, title="a sphere")
+    panels, bars = fig.axes[:4], fig.axes[4:]
+    assert all(ax.images for ax in panels) and len(bars) == 4
+    titles = [ax.get_title() for ax in panels]
+    assert titles[0].startswith("measured") and titles[1].startswith("fitted")
+    assert titles[2].startswith("difference") and titles[3].startswith("FLIP")
+    # the renders share their tone mapping and say what it clips
+    assert "above 1 clipped to white:\n12 % of pixels" in bars[0].get_xlabel()
+    assert "above 1 clipped to white:\n12 % of pixels" in bars[1].get_xlabel()
+    # the difference is the luminance of fitted - measured, clipped at its 99th percentile
+    shown = panels[2].images[0]
+    np.testing.assert_allclose(shown.get_array(), luminance(fitted - measured))
+    limit = np.percentile(np.abs(luminance(fitted - measured)), 99)
+    assert shown.norm.vmax == pytest.approx(limit) and shown.norm.vmin == pytest.approx(-limit)
+    assert f"clipped at ±{limit:.3g}" in bars[2].get_xlabel()
+    assert "1 % of pixels beyond" in bars[2].get_xlabel()
+    # FLIP on its fixed scale 0 to 1, its mean in the title
+    mean, error = flip_error(fitted, measured)
+    np.testing.assert_allclose(panels[3].images[0].get_array(), error)
+    assert (panels[3].images[0].norm.vmin, panels[3].images[0].norm.vmax) == (0.0, 1.0)
+    assert f"mean {mean:.4g}" in titles[3]
+    assert "FLIP" in bars[3].get_xlabel()
+    img = assert_png(save_figure(fig, tmp_path / "comparison.png"), fig)
+    assert img.shape[1] >= 4 * 256
+
+
+def test_validation_figure_refuses_images_of_two_sizes():
+    with pytest.raises(InputError, match="one size"):
+        validation_figure(np.zeros((4, 4, 3)), np.zeros((4, 5, 3)))
