@@ -7,6 +7,7 @@ import shutil
 import subprocess
 
 import pytest
+from PIL import Image
 
 from brdf import demo
 
@@ -32,6 +33,11 @@ def test_demo_writes_every_stage(results):
             assert (out / path).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / f"{name}-fit.json").exists() and (out / f"{name}-measured.exr").exists()
         assert 0.0 <= e["image_metrics"]["flip"] < 0.3
+        # one figure per material holds measured | fitted | difference | FLIP (brdf-fit
+        # validate's comparison.png), each panel at least 256 pixels wide
+        assert e["images"][demo.VALIDATION_FIGURE] == f"{name}-comparison.png"
+        with Image.open(out / f"{name}-comparison.png") as figure:
+            assert figure.width >= 4 * 256
     # the synthetic table is recovered: its true model wins and its parameters come back
     syn = summary["datasets"]["synthetic-merl"]
     assert syn["compare"][0]["spec"] == "lambert + ggx"
