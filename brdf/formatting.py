@@ -9,8 +9,9 @@ import numpy as np
 __all__ = ["format_table", "json_ready", "significant", "round_numbers", "DECIMAL"]
 
 #: A decimal number written with a point or an exponent (``0.0794696``, ``-1.5e-05``), not
-#: inside a word or after a point (``r2``, ``1.2.3``); integers (counts, indices) do not match.
-DECIMAL = re.compile(r"(?<![\w.])-?(?:\d+\.\d+(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+)")
+#: inside a word or after a point (``r2``, ``1.2.3``, a SHA-256 ``...9e5a...``); integers
+#: (counts, indices) do not match.
+DECIMAL = re.compile(r"(?<![\w.])-?(?:\d+\.\d+(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+)(?!\w)")
 
 
 def format_table(header, rows, align=None):

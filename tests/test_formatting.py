@@ -18,6 +18,6 @@ def test_round_numbers_rounds_decimals_and_leaves_integers_and_names():
     assert round_numbers(spec) == ("lambert(albedo=[0.7545,0.7696,0.9136]) + "
                                    "beckmann(ks=1.5e-05, alpha=0.4251)")
     # counts, indices, names with digits and version strings are not decimals
-    assert round_numbers("1458000 samples, albedo[2], r2, v1.2.3") == \
-        "1458000 samples, albedo[2], r2, v1.2.3"
+    assert round_numbers("1458000 samples, albedo[2], r2, v1.2.3, 9e5ab0, 0.1234567x") == \
+        "1458000 samples, albedo[2], r2, v1.2.3, 9e5ab0, 0.1234567x"
     assert round_numbers("0.123456", digits=2) == "0.12"
