@@ -33,6 +33,10 @@ SCATTER_POINTS = 20000
 #: Line colours of successive incidence angles or subjects (matplotlib's tab10).
 CYCLE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
          "#7f7f7f", "#bcbd22", "#17becf")
+#: Grey of pixels and bins without a value (below the horizon, no sample).
+GAP_GREY = "#dddddd"
+#: Decades under the peak that a slice's log colours span; lower values take the darkest colour.
+SLICE_DECADES = 4.0
 #: Narrowest panel of :func:`validation_figure`, in pixels at the figure's dpi.
 MIN_PANEL_PIXELS = 256
 #: Colours of named channels.
@@ -42,7 +46,18 @@ CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
 def _grey_gaps(name):
     """Colour map ``name`` drawing missing pixels (NaN: below the horizon, no sample) grey."""
     from matplotlib import colormaps
-    return colormaps[name].with_extremes(bad="#dddddd")
+    return colormaps[name].with_extremes(bad=GAP_GREY)
+
+
+def _key(fig, entries):
+    """A legend under the figure of what its masked and clipped regions mean: ``entries`` are
+    ``(colours, text)`` pairs, a list of colours drawn as patches side by side."""
+    from matplotlib.legend_handler import HandlerTuple
+    from matplotlib.patches import Patch
+    handles = [tuple(Patch(facecolor=c, edgecolor="#999999") for c in colours)
+               for colours, _ in entries]
+    fig.legend(handles, [text for _, text in entries], loc="outside lower center", fontsize=7,
+               frameon=False, handler_map={tuple: HandlerTuple(ndivide=None)})
 
 
 def save_figure(fig, path, force=False, dpi=100):
@@ -78,11 +93,16 @@ def _in_plane_samples(data, wi):
     return samples_near(data, wi, plane=True)
 
 
+def _polar_floor(peak):
+    """The round value at least :data:`POLAR_DECADES` below ``peak`` that a log-radius polar
+    plot puts at its centre (lower values are drawn there too)."""
+    return 10.0 ** math.floor(math.log10(peak) - POLAR_DECADES)
+
+
 def _log_radius(ax, peak):
-    """Map values to radii in decades above a round floor at least :data:`POLAR_DECADES`
-    below ``peak``; ticks read in 1/sr."""
+    """Map values to radii in decades above :func:`_polar_floor`; ticks read in 1/sr."""
     from matplotlib.ticker import FixedLocator, FuncFormatter
-    floor = 10.0 ** math.floor(math.log10(peak) - POLAR_DECADES)
+    floor = _polar_floor(peak)
     top = math.ceil(math.log10(peak / floor) - 1e-9)
     ax.set_rlim(0.0, top)
     ax.yaxis.set_major_locator(FixedLocator(np.arange(1, top + 1)))
@@ -143,6 +163,7 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
     ax.set_thetamin(-90)
     ax.set_thetamax(90)
     radius = _log_radius(ax, peak) if log else (lambda f: f)
+    floor = _polar_floor(peak)
     for k, (t, curve, points) in enumerate(rows):
         colour = CYCLE[k % len(CYCLE)]
         ax.plot(np.radians(angles), radius(curve), color=colour, lw=1.6,
@@ -153,6 +174,12 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
                     mfc="none", mew=0.9)
     if any(p is not None and len(p[0]) for _, _, p in rows):
         ax.plot([], [], "o", color="black", mfc="none", label="measured")
+    lowest = min([np.nanmin(c) for _, c, _ in rows]
+                 + [np.nanmin(p[1]) for _, _, p in rows if p is not None and len(p[1])])
+    if log and lowest < floor:
+        # a log radius has no room for them: they are drawn at the centre, and the legend
+        # says so
+        ax.plot([], [], " ", label=f"under {floor:g} 1/sr:\ndrawn at the centre")
     quantity = "f_r cos(theta_o) [1/sr]" if cosine else F_LABEL
     ax.set_title(_title(subject, channel, f"phi_i = {float(phi_i):g}°"), fontsize=9)
     # the half disc leaves the lower half of the axes empty: pull the label up into it
@@ -178,7 +205,11 @@ def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
 
     Specular reflection is the left column (theta_h = 0), retro-reflection the bottom row
     (theta_d = 0), grazing Fresnel rises at the top; pixels whose directions fall below the
-    horizon are left blank (Burley 2012, "Physically-based shading at Disney", fig. 5).
+    horizon, or whose value is not positive (a log scale has no place for it), are left grey
+    (Burley 2012, "Physically-based shading at Disney", fig. 5). The colours span at most
+    :data:`SLICE_DECADES` decades under the peak; lower values are clipped to the darkest. A
+    legend under the image says which of these the picture holds, and that the darkest colour
+    is the lowest value, not a gap.
     """
     from matplotlib.colors import LogNorm
     _check_channel(subject, channel)
@@ -190,20 +221,31 @@ def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
     wi, wo = directions_from_half_diff(theta_h[None, :], 0.0, theta_d[:, None],
                                        math.radians(phi_d))
     f = channel_values(subject.eval(wi, wo), channel)
-    f = np.where((wi[..., 2] > 0) & (wo[..., 2] > 0) & (f > 0), f, np.nan)
+    below = (wi[..., 2] <= 0) | (wo[..., 2] <= 0)
+    not_positive = ~below & ~(f > 0)
+    f = np.where(below | not_positive, np.nan, f)
     if not np.isfinite(f).any():
         raise InputError(f"{subject}: no positive value on the slice phi_d = {phi_d:g}")
-    fig = _figure(5.6, 4.6)
+    peak = float(np.nanmax(f))
+    floor = max(float(np.nanmin(f)), peak * 10.0 ** -SLICE_DECADES)
+    clipped = bool(np.nanmin(f) < floor)
+    cmap = _grey_gaps("magma")
+    fig = _figure(5.6, 5.0)
     ax = fig.add_subplot()
-    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=_grey_gaps(
-        "magma"),
-                      norm=LogNorm(vmin=np.nanmax(f) * 1e-4 if np.nanmin(f) < np.nanmax(f)
-                                   * 1e-4 else np.nanmin(f), vmax=np.nanmax(f)),
-                      interpolation="nearest")
+    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=cmap,
+                      norm=LogNorm(vmin=floor, vmax=peak), interpolation="nearest")
     _merl_theta_h_axis(ax)
     ax.set_ylabel("theta_d [deg]")
     ax.set_title(_title(subject, channel, f"phi_d = {phi_d:g}°", width=60), fontsize=9)
-    fig.colorbar(image, ax=ax, label=F_LABEL + " (log)")
+    fig.colorbar(image, ax=ax, label=F_LABEL + " (log)", extend="min" if clipped else "neither")
+    keys = [([cmap(0.0)], f"darkest: {floor:.3g} 1/sr" + (
+        f" and below ({SLICE_DECADES:g} decades under the peak; lower values clipped)"
+        if clipped else ", the lowest value (not missing data)"))]
+    if below.any():
+        keys.append(([GAP_GREY], "grey: no value, a direction below the horizon"))
+    if not_positive.any():
+        keys.append(([GAP_GREY], "grey: f_r <= 0, which a log scale cannot show"))
+    _key(fig, keys)
     return fig
 
 
@@ -285,7 +327,8 @@ def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
     count, _, _ = np.histogram2d(x, y, edges)
     mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).T
     limit = max(float(np.nanpercentile(np.abs(mean), 99)), 1e-3)
-    fig = _figure(11.0, 4.6)
+    clipped = int(np.sum(np.abs(mean) > limit))
+    fig = _figure(11.0, 5.0)
     left, right = fig.subplots(1, 2)
     pick = np.unique(np.linspace(0, len(measured) - 1, min(len(measured), SCATTER_POINTS))
                      .round().astype(int))
@@ -306,7 +349,16 @@ def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
     _merl_theta_h_axis(right)
     right.set_ylabel("theta_d [deg]")
     right.set_title("mean over samples in each bin (blue: model too low)", fontsize=9)
-    fig.colorbar(image, ax=right, label="log10(model / measured)")
+    fig.colorbar(image, ax=right, label="log10(model / measured)",
+                 extend="both" if clipped else "neither")
+    keys = [([GAP_GREY], f"grey: no sample in the bin (beyond the {cutoff:g}° cutoff, below the "
+                       "horizon or not measured)")] if np.isnan(mean).any() else []
+    if clipped:
+        ends = image.get_cmap()
+        keys.append(([ends(0.0), ends(1.0)], f"{clipped} of {int(np.sum(count > 0))} bins "
+                     f"beyond ±{limit:.3g} (the 99th percentile): clipped to the bar's ends"))
+    if keys:
+        _key(fig, keys)
     fig.suptitle(_title(table, channel, f"fitted by {label(model)}", width=140), fontsize=9)
     return fig
 
