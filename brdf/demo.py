@@ -6,7 +6,8 @@ the virtual gonioreflectometer with 2 % noise), it runs every stage the library 
 
 info -> physical checks -> nlopt fits of candidate models with the energy constraint ->
 comparison (BIC) -> emcee posterior of the best fit of the real data -> validation renders
-(measured versus fitted, false-colour difference, FLIP) -> 3-D lobes and 2-D plots ->
+(:func:`brdf.render.validate`: measured versus fitted, false-colour difference, FLIP, in one
+figure) -> 3-D lobes and 2-D plots ->
 ``results/`` with the JSON reports, the images and one self-contained ``report.html``.
 """
 
@@ -21,13 +22,22 @@ import numpy as np
 
 from .errors import InputError, OutputError
 
-__all__ = ["run", "DATASETS", "CANDIDATES"]
+__all__ = ["run", "DATASETS", "CANDIDATES", "VALIDATION_FIGURE"]
 
 #: Candidate models fitted to each data set (BIC picks among them)
 CANDIDATES = ("lambert", "lambert + ggx", "lambert + beckmann")
 #: The synthetic material: its true model and the noise of its virtual measurement
 SYNTHETIC_TRUTH = "lambert(albedo=[0.35,0.2,0.1]) + ggx(alpha=0.18, ks=[0.5,0.5,0.5])"
 SYNTHETIC_NOISE = "relative:0.02"
+#: Validation renders (pixels, samples per pixel): the lit sphere's noise comes mostly from
+#: choosing between the key light and the environment, so it falls only as 1/sqrt(spp). Five
+#: times the paths of 160 x 160 at 32 spp cut the noise per pixel by 30 % (relative standard
+#: error 6.2 % instead of 8.7 %) and make the shading large enough to judge, for a few seconds
+#: more: the four renders are most of the validation stages' time, the emcee chain most of
+#: the demo's.
+RENDER_SIZE, RENDER_SPP = (256, 256), 64
+#: The report's label of the composite validation figure (brdf.viz.validation_figure)
+VALIDATION_FIGURE = "validation: measured | fitted | difference | FLIP"
 
 
 def _bundled(name):
@@ -142,8 +152,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     True: as on a terminal; False: nothing."""
     import brdf
     from .progress import mode, note
-    from .render import builtin, render
-    from .render.image import false_colour, metrics, tonemap, write_png
+    from .render import validate
     from .viz import albedo_plot, inplane_plot, plot_lobes, residual_plot, save_figure, slice_plot
     shown = mode(progress)
     # the bars of the fits and renders within a stage, on a terminal only: elsewhere the
@@ -152,7 +161,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     out = _prepare(outdir, force)
     t_start = time.perf_counter()
     compiling = _start_compiling()
-    size, spp = ((48, 48), 8) if quick else ((160, 160), 32)
+    size, spp = ((48, 48), 8) if quick else (RENDER_SIZE, RENDER_SPP)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
     stage = _Stages(progress, summary["stages"])
     with stage("read and synthesise"):
@@ -183,21 +192,11 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 entry["images"]["posterior (corner)"] = f"{name}-corner.png"
         with stage(f"{name}: validation renders"):
             compiling.join()
-            images = {}
-            for label, material in (("measured", table), ("fitted", best.model)):
-                r = render(builtin("sphere", material), spp=spp, size=size, seed=seed,
-                           progress=inner)
-                r.save(out / f"{name}-{label}.exr", force=True)
-                write_png(out / f"{name}-{label}.png", tonemap(r.image), force=True)
-                images[label] = r.image
-                entry["images"][f"render: {label}"] = f"{name}-{label}.png"
-            m, flip_map = metrics(images["fitted"], images["measured"])
-            write_png(out / f"{name}-difference.png",
-                      false_colour(images["fitted"] - images["measured"]), force=True)
-            write_png(out / f"{name}-flip.png", flip_map, force=True)
-            entry["images"]["difference (red: fit brighter)"] = f"{name}-difference.png"
-            entry["images"]["FLIP error"] = f"{name}-flip.png"
-            entry["image_metrics"] = m
+            # brdf-fit validate's renders and pictures, named after the data set
+            entry["image_metrics"] = validate(table, best.model, out, spp=spp, size=size,
+                                              seed=seed, force=True, prefix=f"{name}-",
+                                              progress=inner)
+            entry["images"][VALIDATION_FIGURE] = f"{name}-comparison.png"
         with stage(f"{name}: lobes and plots"):
             plot_lobes(best.model, (30.0, 60.0), data=table, path=out / f"{name}-lobes.png",
                        force=True)
@@ -224,20 +223,74 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
 
 _STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 8px;
-text-align:right}th{background:#f3f3f3}td.l,th.l{text-align:left}figure{display:inline-block;
-margin:0.5em;vertical-align:top}figure img{max-width:340px;border:1px solid #ddd}
-figcaption{font-size:0.85em;color:#555}code{background:#f6f6f6}"""
+text-align:right;white-space:nowrap}th{background:#f3f3f3}td.l,th.l{text-align:left;
+white-space:normal}
+.figures{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start;margin:1em 0}
+figure{margin:0;flex:0 1 calc(50% - 0.5em);max-width:calc(50% - 0.5em)}
+figure.wide{flex-basis:100%;max-width:100%}
+figure img{display:block;max-width:100%;height:auto;border:1px solid #ddd}
+a.zoom{cursor:zoom-in}figcaption{font-size:0.85em;color:#555;margin-top:0.3em}
+code{background:#f6f6f6}
+#viewer{position:fixed;inset:0;z-index:9;display:flex;overflow:auto;
+background:rgba(25,25,25,0.92);cursor:zoom-out}#viewer[hidden]{display:none}
+#viewer img{margin:auto;max-width:none;background:#fff}
+#viewer p{position:fixed;top:0;left:0;margin:0;padding:4px 10px;color:#eee;
+background:rgba(0,0,0,0.6);font-size:0.85em}"""
 
-# counts the pictures that decoded, for a headless browser to read back (tests)
-_SCRIPT = """window.addEventListener('load',function(){var n=0,imgs=document.images;
+# A click on a picture shows it at its full size in a viewer over the page (a click or Esc
+# closes it); report.html#view-N opens picture N so. The pictures are data URIs inside this one
+# file, and browsers refuse to open a data URI as a page of its own, hence the viewer. The
+# load handler also counts the pictures that decoded and what the viewer shows, for a headless
+# browser to read back (tests/test_demo.py).
+_SCRIPT = """function view(id){var v=document.getElementById('viewer'),
+a=id?document.querySelector('a.zoom[href="#'+id+'"]'):null;if(!a){v.hidden=true;return;}
+var big=v.querySelector('img'),small=a.querySelector('img');
+big.onload=function(){var b=document.body;b.setAttribute('data-viewing',id);
+b.setAttribute('data-viewer-width',big.width);
+b.setAttribute('data-viewer-natural',big.naturalWidth);};
+big.src=small.src;big.alt=small.alt;v.querySelector('p').textContent=small.alt+': '+
+small.naturalWidth+' x '+small.naturalHeight+' pixels, full size; a click or Esc closes it';
+v.hidden=false;v.scrollTop=0;v.scrollLeft=0;}
+window.addEventListener('load',function(){var n=0,imgs=document.querySelectorAll('figure img');
 for(var i=0;i<imgs.length;i++){if(imgs[i].complete&&imgs[i].naturalWidth>0)n++;}
 document.body.setAttribute('data-images-loaded',n);
-document.body.setAttribute('data-images-total',imgs.length);});"""
+document.body.setAttribute('data-images-total',imgs.length);
+document.querySelectorAll('a.zoom').forEach(function(a){a.addEventListener('click',function(e){
+if(e.ctrlKey||e.metaKey||e.shiftKey||e.button)return;e.preventDefault();
+view(a.getAttribute('href').slice(1));});});
+document.getElementById('viewer').addEventListener('click',function(){this.hidden=true;});
+document.addEventListener('keydown',function(e){if(e.key==='Escape')
+document.getElementById('viewer').hidden=true;});
+view(location.hash.slice(1));});"""
+
+#: What a picture's lines and colours mean, where the picture itself does not say
+_CAPTIONS = {
+    VALIDATION_FIGURE: "the table and its fit rendered on the lit sphere with the same seed; "
+                       "each colour bar says what its panel's colours stand for and how many "
+                       "pixels it clips",
+    "posterior (corner)": "1-D and 2-D marginals of the posterior; dashed lines: 16th, 50th "
+                          "and 84th percentiles; blue lines: the optimum of the fit",
+}
 
 
 def _img(path):
     data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
     return f'<img alt="{html.escape(Path(path).name)}" src="data:image/png;base64,{data}">'
+
+
+def _png_size(path):
+    """(width, height) of a PNG, from its header (IHDR, the first chunk)."""
+    import struct
+    with open(path, "rb") as f:
+        return struct.unpack(">II", f.read(24)[16:24])
+
+
+def _figure(path, label, number, wide=False):
+    """A picture that opens at full size on a click (the viewer of :data:`_SCRIPT`)."""
+    note = _CAPTIONS.get(label)
+    caption = html.escape(label) + (f": {html.escape(note)}" if note else "")
+    return (f'<figure{" class=wide" if wide else ""}><a class="zoom" href="#view-{number}" '
+            f'title="full size">{_img(path)}</a><figcaption>{caption}</figcaption></figure>')
 
 
 def _table(head, rows, left=1):
@@ -249,58 +302,73 @@ def _table(head, rows, left=1):
 
 
 def _check_rows(check):
+    from .formatting import significant
     rows = []
     for c in check["checks"]:
-        where = ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}"
+        where = ", ".join(f"{k} {significant(v)}" if isinstance(v, float) else f"{k} {v}"
                           for k, v in (c.get("where") or {}).items() if v is not None)
         worst = c.get("worst")
         rows.append([c["name"], "n/a" if c.get("passed") is None else
                      ("pass" if c["passed"] else "FAIL"),
-                     f"{worst:.4g}" if isinstance(worst, (int, float)) else "", where])
+                     significant(worst) if isinstance(worst, (int, float)) else "", where])
     return rows
 
 
 def _write_report(out, summary):
+    """report.html: every table and picture of the run in one file; numbers for people with
+    four significant digits (the JSON files beside it hold them in full)."""
+    from .formatting import round_numbers, significant as sig
     from .io import atomic_output
+    from .table import summary_rows
     parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>brdf demo report</title>",
              f"<style>{_STYLE}</style><script>{_SCRIPT}</script></head><body>",
              "<h1>brdf demo report</h1>",
              f"<p>Seed {summary['seed']}; {summary['seconds']:.0f} s end to end. Every number "
-             "and picture below was made by this run; the JSON files beside this page hold "
-             "them in full.</p>"]
+             "and picture below was made by this run; numbers show four significant digits, "
+             "and the JSON files beside this page hold them in full. A click on a picture "
+             "shows it at full size.</p>"]
+    number = 0
     for name, e in summary["datasets"].items():
         parts.append(f"<h2>{html.escape(name)}</h2>")
-        info = e["info"]
-        parts.append(_table(["property", "value"], [[k, info[k]] for k in info
-                                                    if not isinstance(info[k], (dict, list))]))
+        parts.append("<h3>The measurement (brdf-fit info)</h3>")
+        parts.append(_table(["property", "value"], summary_rows(e["info"], digits=4), left=2))
         rows = _check_rows(e["check"])
         if rows:
             parts.append("<h3>Physical checks of the measurement</h3>")
             parts.append(_table(["check", "verdict", "worst", "where"], rows))
         parts.append("<h3>Model comparison (BIC, energy-constrained fits)</h3>")
         parts.append(_table(["rank", "model", "k", "loss", "BIC", "dBIC", "weight", "checks"],
-                            [[i + 1, r["fitted"], r["k"], f"{r['loss']:.5g}", f"{r['bic']:.1f}",
-                              f"{r['delta']:.1f}", f"{r['weight']:.3f}",
+                            [[i + 1, round_numbers(r["fitted"]), r["k"], sig(r["loss"]),
+                              sig(r["bic"]), sig(r["delta"]), sig(r["weight"]),
                               "pass" if r["checks_pass"] else "FAIL"]
                              for i, r in enumerate(e["compare"])], left=2))
         if "posterior" in e:
             p = e["posterior"]
             parts.append("<h3>Posterior of the best fit (emcee)</h3>")
             parts.append(_table(["parameter", "median", "16 %", "84 %", "2.5 %", "97.5 %"],
-                                [[k] + [f"{v[q]:.4g}" for q in ("50", "16", "84", "2.5", "97.5")]
+                                [[k] + [sig(v[q]) for q in ("50", "16", "84", "2.5", "97.5")]
                                  for k, v in p["percentiles"].items()]))
-            parts.append(f"<p>{html.escape(p['verdict'])}; acceptance "
-                         f"{p['acceptance_fraction']:.2f}, {p['walkers']} walkers x "
+            parts.append(f"<p>{html.escape(round_numbers(p['verdict']))}; acceptance "
+                         f"{sig(p['acceptance_fraction'])}, {p['walkers']} walkers x "
                          f"{p['steps']} steps</p>")
         m = e.get("image_metrics", {})
         if m:
             parts.append("<h3>Validation render: fitted against measured</h3>")
-            parts.append(_table(["RMSE", "relative MSE", "FLIP"],
-                                [[f"{m['rmse']:.4g}", f"{m['relmse']:.4g}",
-                                  f"{m.get('flip', float('nan')):.4g}"]], left=0))
-        for label, path in e["images"].items():
-            parts.append(f"<figure>{_img(out / path)}<figcaption>{html.escape(label)}"
-                         "</figcaption></figure>")
-    parts.append("</body></html>")
+            parts.append(_table(["scene", "size", "samples per pixel", "RMSE", "relative MSE",
+                                 "FLIP"],
+                                [[m.get("scene", ""), " x ".join(map(str, m.get("size", []))),
+                                  m.get("spp", ""), sig(m["rmse"]), sig(m["relmse"]),
+                                  sig(m.get("flip", float("nan")))]], left=1))
+        parts.append('<div class="figures">')
+        # pictures of panels side by side (at least twice as wide as tall) take the full
+        # width, which they need to be read: the validation figure first, then the others,
+        # then the rest two in a row
+        shapes = {label: _png_size(out / path) for label, path in e["images"].items()}
+        wide = {label for label, (w, h) in shapes.items() if w >= 2 * h}
+        for label in sorted(e["images"], key=lambda k: (k != VALIDATION_FIGURE, k not in wide)):
+            parts.append(_figure(out / e["images"][label], label, number, wide=label in wide))
+            number += 1
+        parts.append("</div>")
+    parts.append('<div id="viewer" hidden><p></p><img alt=""></div></body></html>')
     with atomic_output(out / "report.html", force=True) as tmp:
         tmp.write_text("\n".join(parts), encoding="utf-8")

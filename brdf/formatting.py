@@ -2,10 +2,16 @@
 fits, comparisons, posteriors, batches, the command line)."""
 
 import math
+import re
 
 import numpy as np
 
-__all__ = ["format_table", "json_ready"]
+__all__ = ["format_table", "json_ready", "significant", "round_numbers", "DECIMAL"]
+
+#: A decimal number written with a point or an exponent (``0.0794696``, ``-1.5e-05``), not
+#: inside a word or after a point (``r2``, ``1.2.3``, a SHA-256 ``...9e5a...``); integers
+#: (counts, indices) do not match.
+DECIMAL = re.compile(r"(?<![\w.])-?(?:\d+\.\d+(?:[eE][-+]?\d+)?|\d+[eE][-+]?\d+)(?!\w)")
 
 
 def format_table(header, rows, align=None):
@@ -40,3 +46,16 @@ def json_ready(x):
     if isinstance(x, (float, np.floating)):
         return float(x) if math.isfinite(x) else None
     return x
+
+
+def significant(x, digits=4):
+    """``x`` written with at most ``digits`` significant digits (``f"{x:.4g}"``): what reports
+    for people show of a fitted parameter or a metric, whose later digits are noise."""
+    return f"{float(x):.{int(digits)}g}"
+
+
+def round_numbers(text, digits=4):
+    """``text`` with every decimal number in it (:data:`DECIMAL`) rounded to ``digits``
+    significant digits: a fit's spec carries all 17 (``str(model)`` round-trips), which a
+    title or a table has no room for."""
+    return DECIMAL.sub(lambda m: significant(m.group(), digits), str(text))

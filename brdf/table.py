@@ -27,7 +27,7 @@ from .geometry import (broadcast_shape, degrees_from_directions, direction_array
                        directions_from_degrees, flat_pairs, real_array, uniform_array)
 
 __all__ = ["Table", "AngleTable", "ScatteredInterpolant", "regular_grid", "half_vector_rule",
-           "channel_names_for", "sample_values"]
+           "channel_names_for", "sample_values", "summary_rows"]
 
 #: Directions may dip this far below the horizon (z) and still count as measured: angles stored
 #: in degrees with a few digits put theta = 90 at z ~ 1e-17 either side.
@@ -48,6 +48,50 @@ def channel_names_for(channels, wavelengths=None):
     if channels == 1:
         return ("value",)
     return tuple(f"c{k}" for k in range(channels))
+
+
+def summary_rows(summary, digits=6):
+    """``(field, text)`` rows of a :meth:`Table.summary` for people, numbers rounded to
+    ``digits`` significant digits (``brdf-fit info`` and the demo's report print these).
+
+    Samples (direction pairs) and values (a sample's entries, one per channel) are counted
+    apart: ``samples 1,458,000 x 3 channels = 4,374,000 values``, then the missing samples,
+    the partially missing ones and the missing values."""
+    from .formatting import round_numbers, significant
+    source = summary["source"] or {}
+    n, c = summary["samples"], summary["channels"]
+    rows = [("file", source["path"]) if source.get("path") else ("name", summary["name"]),
+            ("format", summary["format"])]
+    if source:
+        rows += [("size", f"{source.get('size', 0):,} bytes"), ("sha256", source.get("sha256", ""))]
+    if summary["wavelengths_nm"]:
+        w = summary["wavelengths_nm"]
+        channels = (f"{c} wavelengths, {significant(w[0], digits)} .. "
+                    f"{significant(w[-1], digits)} nm")
+    else:
+        channels = f"{c} ({', '.join(summary['channel_names'])})"
+    rows += [("samples", f"{n:,} direction pairs x {c} channel{'s' if c != 1 else ''} = "
+                         f"{n * c:,} values"),
+             ("channels", channels),
+             ("isotropic", ("yes" if summary["isotropic"] else "no")
+              + (" (in-plane scan)" if summary["in_plane"] else "")),
+             ("sigma", "per sample" if summary["sigma"] else "none"),
+             ("missing samples", f"{summary['missing_samples']:,} of {n:,} (no value in any "
+                                 "channel)"),
+             ("partially missing samples", f"{summary['partially_missing_samples']:,} (a value "
+                                           "missing in some channels)"),
+             ("missing values", f"{summary['missing_values']:,} of {n * c:,}"),
+             ("negative values", f"{summary['negative_values']:,} of {n * c:,}")]
+    lo, hi = summary["value_range"]
+    if lo <= hi:
+        rows.append(("range", f"{significant(lo, digits)} .. {significant(hi, digits)} 1/sr"))
+    rows += [(f"{name} [deg]", f"{significant(a, digits)} .. {significant(b, digits)}")
+             for name, (a, b) in ((k, v) for k, v in summary["angles_deg"].items()
+                                  if v is not None)]
+    # metadata strings stay as written (a version "1.0" is not a measurement)
+    rows += [(f"meta {k}", v if isinstance(v, str) else round_numbers(v, digits))
+             for k, v in summary["metadata"].items()]
+    return rows
 
 
 class Table:
@@ -180,9 +224,17 @@ class Table:
         return np.isnan(self.values)
 
     def summary(self):
-        """JSON-ready facts about the table (what ``brdf-fit info`` prints)."""
+        """JSON-ready facts about the table (what ``brdf-fit info`` prints; :func:`summary_rows`
+        words them).
+
+        A sample is one (wi, wo) pair with a value per channel. ``missing_samples`` counts the
+        samples missing in every channel, ``partially_missing_samples`` those missing in some
+        channels but not all, and ``missing_values`` the missing entries over all channels
+        (a MERL table's 346,570 unmeasurable samples are 1,039,710 values in RGB).
+        ``negative_values`` counts entries below 0."""
         values = np.asarray(self.values, dtype=float)
         measured = np.isfinite(values)
+        per_sample = measured.sum(axis=1)
         # coverage of what was measured (a grid layout may hold nodes nothing can measure)
         angles = self.angles[measured.any(axis=1)]
         coverage = {name: ([float(angles[:, j].min()), float(angles[:, j].max())]
@@ -191,8 +243,8 @@ class Table:
         per_channel = [{"name": name,
                         "min": float(np.min(values[measured[:, c], c], initial=math.inf)),
                         "max": float(np.max(values[measured[:, c], c], initial=-math.inf)),
-                        "missing": int((~measured[:, c]).sum()),
-                        "negative": int((values[measured[:, c], c] < 0).sum())}
+                        "missing_values": int((~measured[:, c]).sum()),
+                        "negative_values": int((values[measured[:, c], c] < 0).sum())}
                        for c, name in enumerate(self.channel_names)]
         return {
             "name": self.name, "format": self.format,
@@ -205,7 +257,11 @@ class Table:
             "angles_deg": coverage,
             "value_range": [float(np.min(values[measured], initial=math.inf)),
                             float(np.max(values[measured], initial=-math.inf))],
-            "missing": int((~measured).sum()), "negative": int((values[measured] < 0).sum()),
+            "missing_samples": int((per_sample == 0).sum()),
+            "partially_missing_samples": int(((per_sample > 0)
+                                              & (per_sample < self.channels)).sum()),
+            "missing_values": int((~measured).sum()),
+            "negative_values": int((values[measured] < 0).sum()),
             "per_channel": per_channel, "metadata": self.metadata,
         }
 

@@ -170,35 +170,13 @@ def albedo(args, out):
 
 def info(args, out):
     """Describe a measured table: format, channels, coverage, values, provenance."""
+    from brdf.table import summary_rows
     summary = read_table(args.file, args.sample).summary()
     if args.json:
         out.json(summary)
         return EXIT_OK
-    source = summary["source"] or {}
-    lines = [("file", source.get("path", summary["name"])),
-             ("format", summary["format"]),
-             ("size", f"{source.get('size', 0):,} bytes"),
-             ("sha256", source.get("sha256", "")),
-             ("samples", f"{summary['samples']:,}"),
-             ("channels", _channels_text(summary)),
-             ("isotropic", ("yes" if summary["isotropic"] else "no")
-              + (" (in-plane scan)" if summary["in_plane"] else "")),
-             ("sigma", "per sample" if summary["sigma"] else "none"),
-             ("missing", f"{summary['missing']:,} values"),
-             ("negative", f"{summary['negative']:,} values"),
-             ("range", "{:.6g} .. {:.6g} 1/sr".format(*summary["value_range"]))]
-    lines += [(f"{name} [deg]", f"{lo:g} .. {hi:g}")
-              for name, (lo, hi) in summary["angles_deg"].items() if lo is not None]
-    lines += [(f"meta {k}", str(v)) for k, v in summary["metadata"].items()]
-    out.table(("field", "value"), lines)
+    out.table(("field", "value"), summary_rows(summary))
     return EXIT_OK
-
-
-def _channels_text(summary):
-    if summary["wavelengths_nm"]:
-        w = summary["wavelengths_nm"]
-        return f"{summary['channels']} wavelengths, {w[0]:g} .. {w[-1]:g} nm"
-    return f"{summary['channels']} ({', '.join(summary['channel_names'])})"
 
 
 def convert(args, out):

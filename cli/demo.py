@@ -27,7 +27,9 @@ def demo(args, out):
     if args.json:
         out.json(summary)
     else:
-        rows = [[name, e["best"], f"{e['image_metrics'].get('flip', float('nan')):.3f}"]
+        from brdf.formatting import round_numbers, significant
+        rows = [[name, round_numbers(e["best"]),
+                 significant(e["image_metrics"].get("flip", float("nan")))]
                 for name, e in summary["datasets"].items()]
         out.table(["data", "best model (BIC)", "render FLIP"], rows)
         out.text(f"{summary['seconds']:.0f} s; open {args.output}/report.html")

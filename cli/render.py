@@ -77,8 +77,9 @@ def add_parsers(sub, subcommand, arguments, subject_help, data_help):
     p = subcommand(sub, "validate", validate, "render measured data and its fit side by side",
                    "Render the measured table DATA and the fitted model REPORT (a fit report, "
                    "or a spec) in the same scene with the same seed; write both images (EXR "
-                   "and PNG), a false-colour difference, the FLIP error map and metrics.json "
-                   "(RMSE, relative MSE, mean FLIP) into OUTDIR.",
+                   "and PNG), a false-colour difference, the FLIP error map, comparison.png "
+                   "(the four side by side with their colour bars) and metrics.json (RMSE, "
+                   "relative MSE, mean FLIP) into OUTDIR.",
                    "print the metrics as JSON")
     p.add_argument("data", metavar="DATA", help=data_help)
     p.add_argument("report", metavar="REPORT", help="a JSON fit report (brdf-fit fit -o) or a "

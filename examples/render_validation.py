@@ -4,9 +4,10 @@ Run: ``python examples/render_validation.py [OUTDIR]``
 
 Reads the bundled RGL measurement of white paper, fits ``lambert + ggx`` to it, and renders
 the table and the fit on BRDF Explorer's lit sphere with the same seed (small settings: a few
-seconds once the kernels are compiled). Writes the images, the false-colour difference and the
-FLIP error map into OUTDIR (default: a temporary folder) and prints the image metrics; the same
-as ``brdf-fit validate measurements/rgl/paper_white_rgb.bsdf REPORT -o OUTDIR``.
+seconds once the kernels are compiled). Writes the images, the false-colour difference, the
+FLIP error map and comparison.png (all four side by side, with colour bars) into OUTDIR
+(default: a temporary folder) and prints the image metrics; the same as ``brdf-fit validate
+measurements/rgl/paper_white_rgb.bsdf REPORT -o OUTDIR``.
 """
 
 import sys
@@ -32,7 +33,7 @@ def main(outdir=None):
         print(f"  {label:13s} {metrics[key]:.4g}")
     print(f"  mean RGB      measured {', '.join(f'{x:.4f}' for x in metrics['mean_reference'])}"
           f"; fitted {', '.join(f'{x:.4f}' for x in metrics['mean_test'])}")
-    print(f"images, difference.png, flip.png and metrics.json in {outdir}")
+    print(f"images, difference.png, flip.png, comparison.png and metrics.json in {outdir}")
 
 
 if __name__ == "__main__":

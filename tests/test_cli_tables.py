@@ -2,6 +2,7 @@
 bad-input corpus through the command line (exit 2, one line naming the file, no traceback)."""
 
 import json
+import re
 import struct
 from pathlib import Path
 
@@ -71,6 +72,10 @@ def test_synth_merl_and_check_it(capsys, tmp_path):
     status, out, _ = run(capsys, "info", str(path), "--json")
     info = json.loads(out)
     assert info["format"] == "merl" and info["samples"] == 1_458_000
+    # the grid's unmeasurable pairs miss all three channels: samples and values apart
+    assert info["missing_values"] == 3 * info["missing_samples"] > 0
+    status, out, _ = run(capsys, "info", str(path))
+    assert re.search(rf"missing samples +{info['missing_samples']:,} of 1,458,000", out)
     status, out, _ = run(capsys, "check", str(path), "--json")
     report = json.loads(out)
     assert status == 0, out
@@ -103,7 +108,7 @@ def test_check_on_real_data_flags_curets_negative_values(capsys):
     nonneg = report["checks"][0]
     assert not nonneg["passed"] and nonneg["negative"] == 28
     status, out, _ = run(capsys, "info", path, "--sample", "4", "--json")
-    assert status == 0 and json.loads(out)["negative"] == 1
+    assert status == 0 and json.loads(out)["negative_values"] == 1
     status, _, err = run(capsys, "info", str(measured("rgl/paper_white_rgb.bsdf")), "--sample",
                          "2")
     assert status == 2 and "holds one" in err

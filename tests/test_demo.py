@@ -1,5 +1,6 @@
 """The main job end to end (``brdf-fit demo --quick``), its report checked in a headless
-browser: every picture decodes and the tables are there; off a terminal, one line per stage."""
+browser: every picture decodes, opens at full size, and the tables are there, their numbers
+with at most four significant digits; off a terminal, one line per stage."""
 
 import contextlib
 import io
@@ -7,10 +8,13 @@ import json
 import re
 import shutil
 import subprocess
+from html.parser import HTMLParser
 
 import pytest
+from PIL import Image
 
 from brdf import demo
+from brdf.formatting import DECIMAL, round_numbers
 
 
 @pytest.fixture(scope="module")
@@ -36,6 +40,11 @@ def test_demo_writes_every_stage(results):
             assert (out / path).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         assert (out / f"{name}-fit.json").exists() and (out / f"{name}-measured.exr").exists()
         assert 0.0 <= e["image_metrics"]["flip"] < 0.3
+        # one figure per material holds measured | fitted | difference | FLIP (brdf-fit
+        # validate's comparison.png), each panel at least 256 pixels wide
+        assert e["images"][demo.VALIDATION_FIGURE] == f"{name}-comparison.png"
+        with Image.open(out / f"{name}-comparison.png") as figure:
+            assert figure.width >= 4 * 256
     # the synthetic table is recovered: its true model wins and its parameters come back
     syn = summary["datasets"]["synthetic-merl"]
     assert syn["compare"][0]["spec"] == "lambert + ggx"
@@ -50,6 +59,48 @@ def test_demo_writes_every_stage(results):
     assert len(stages) == 1 + 5 * 2 - 1  # data, then 5 per data set, the posterior once
     assert all(s > 0.0 for s in stages.values())
     assert sum(stages.values()) <= summary["seconds"] <= sum(stages.values()) + 30.0
+
+
+class _Report(HTMLParser):
+    """The report's pictures (with the link around each) and its visible text."""
+
+    def __init__(self):
+        super().__init__()
+        self.links, self.pictures, self.text, self.hidden = [], [], [], 0
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if tag in ("script", "style"):
+            self.hidden += 1
+        elif tag == "a":
+            self.links.append(attrs)
+        elif tag == "img" and attrs.get("src"):
+            self.pictures.append((attrs, self.links[-1] if self.links else None))
+
+    def handle_endtag(self, tag):
+        if tag in ("script", "style"):
+            self.hidden -= 1
+        elif tag == "a":
+            self.links.pop()
+
+    def handle_data(self, data):
+        if not self.hidden:
+            self.text.append(data)
+
+
+def _dom(path, fragment=""):
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        pytest.skip("no chromium: .ci/run installs Debian's chromium for this test")
+    return subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu",
+                           "--virtual-time-budget=5000", "--dump-dom", path.as_uri() + fragment],
+                          capture_output=True, text=True, timeout=120).stdout
+
+
+def _attribute(dom, name):
+    found = re.search(rf'{name}="([^"]*)"', dom)
+    assert found, f"{name} not in {dom[:500]}"
+    return found.group(1)
 
 
 @pytest.mark.slow
@@ -73,20 +124,53 @@ def test_demo_prints_one_line_per_stage_off_a_terminal(results):
 @pytest.mark.xdist_group("demo")
 def test_report_in_a_headless_browser(results):
     out, summary, _ = results
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    if browser is None:
-        pytest.skip("no chromium: .ci/run installs Debian's chromium for this test")
-    dom = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu",
-                          "--virtual-time-budget=5000", "--dump-dom",
-                          (out / "report.html").as_uri()],
-                         capture_output=True, text=True, timeout=120).stdout
-    loaded = re.search(r'data-images-loaded="(\d+)"', dom)
-    total = re.search(r'data-images-total="(\d+)"', dom)
-    assert loaded and total, dom[:500]
+    dom = _dom(out / "report.html")
     expected = sum(len(e["images"]) for e in summary["datasets"].values())
-    assert int(total.group(1)) == expected
-    assert int(loaded.group(1)) == expected
+    assert int(_attribute(dom, "data-images-total")) == expected
+    assert int(_attribute(dom, "data-images-loaded")) == expected
     assert "Model comparison" in dom and "Posterior of the best fit" in dom
+    # every picture is a link that opens it at full size: report.html#view-N shows picture N
+    # in the viewer at its own width (the corner plot is far wider than its thumbnail)
+    report = _Report()
+    report.feed((out / "report.html").read_text(encoding="utf-8"))
+    assert len(report.pictures) == expected
+    for k, (picture, link) in enumerate(report.pictures):
+        assert picture["src"].startswith("data:image/png;base64,")
+        assert link is not None and link.get("class") == "zoom", picture["alt"]
+        assert link["href"] == f"#view-{k}"
+    corner = [k for k, (p, _) in enumerate(report.pictures) if p["alt"].endswith("corner.png")]
+    with Image.open(out / "paper-white-corner.png") as image:
+        width = image.width
+    dom = _dom(out / "report.html", f"#view-{corner[0]}")
+    assert _attribute(dom, "data-viewing") == f"view-{corner[0]}"
+    assert int(_attribute(dom, "data-viewer-natural")) == width
+    assert int(_attribute(dom, "data-viewer-width")) == width
+
+
+@pytest.mark.slow
+@pytest.mark.xdist_group("demo")
+def test_report_numbers_have_four_significant_digits_and_samples_are_not_values(results):
+    out, summary, _ = results
+    report = _Report()
+    report.feed((out / "report.html").read_text(encoding="utf-8"))
+    text = " ".join(report.text)
+    # decimals only: counts (samples, steps, ranks) are exact integers
+    numbers = DECIMAL.findall(text)
+    assert len(numbers) > 50
+    digits = {n: len(re.sub(r"[-.]", "", n.lower().split("e")[0]).lstrip("0")) for n in numbers}
+    assert max(digits.values()) <= 4, [n for n, d in digits.items() if d > 4]
+    # the fitted specs are there, rounded
+    for e in summary["datasets"].values():
+        assert round_numbers(e["compare"][0]["fitted"]) in text
+    # the measurement's table counts missing samples (direction pairs) apart from values
+    for e in summary["datasets"].values():
+        info = e["info"]
+        n, c = info["samples"], info["channels"]
+        assert f"{n:,} direction pairs x {c} channels = {n * c:,} values" in text
+        assert f"missing samples {info['missing_samples']:,} of {n:,}" in text
+        assert f"missing values {info['missing_values']:,} of {n * c:,}" in text
+    merl = summary["datasets"]["synthetic-merl"]["info"]
+    assert merl["missing_values"] == 3 * merl["missing_samples"] > 0
 
 
 def test_demo_refuses_a_non_empty_folder(tmp_path):

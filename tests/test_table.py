@@ -192,13 +192,31 @@ def test_summary_reports_counts_and_coverage(model):
     t = brdf.measure(model, "grid:30,90", noise="relative:0.5", seed=3)
     values = t.values.copy()
     values[0, 1] = np.nan
+    values[2, :] = np.nan
     values[1, 2] = -0.25
     s = t.with_values(values, sigma=t.sigma).summary()
     assert s["samples"] == len(t) and s["channels"] == 3 and s["sigma"]
-    assert s["missing"] == 1 and s["negative"] >= 1
+    # a sample is a direction pair, a value one of its channels: counted apart
+    assert s["missing_values"] == 4
+    assert s["missing_samples"] == 1 and s["partially_missing_samples"] == 1
+    assert s["negative_values"] >= 1
     assert s["value_range"][0] <= -0.25
     assert s["angles_deg"]["theta_i"] == pytest.approx([0.0, 60.0], abs=1e-9)
-    assert s["per_channel"][1]["missing"] == 1
+    assert s["per_channel"][1]["missing_values"] == 2
+
+
+def test_summary_rows_name_samples_and_values_apart(model):
+    from brdf.table import summary_rows
+    t = brdf.measure(model, "grid:30,90", seed=3)
+    values = t.values.copy()
+    values[:3, :] = np.nan
+    rows = dict(summary_rows(t.with_values(values).summary(), digits=4))
+    n = len(t)
+    assert rows["samples"] == f"{n:,} direction pairs x 3 channels = {3 * n:,} values"
+    assert rows["missing samples"].startswith(f"3 of {n:,}")
+    assert rows["partially missing samples"].startswith("0 ")
+    assert rows["missing values"] == f"9 of {3 * n:,}"
+    assert rows["range"].endswith(" 1/sr")
 
 
 def test_interpolant_merges_duplicate_points():

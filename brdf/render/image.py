@@ -11,7 +11,12 @@ from ..errors import FormatError, InputError
 #: Layers holding vectors, whose channels are named X, Y, Z
 _VECTOR_LAYERS = {"normal", "position"}
 
-__all__ = ["read_image", "write_exr", "write_png", "tonemap", "false_colour", "metrics"]
+__all__ = ["read_image", "write_exr", "write_png", "tonemap", "false_colour", "metrics",
+           "luminance", "difference_scale", "flip_error", "magma", "DIFFERENCE_PERCENTILE"]
+
+#: Percentile of |difference| that a false-colour difference shows at full colour; the larger
+#: differences (a noisy pixel, a silhouette) are clipped there.
+DIFFERENCE_PERCENTILE = 99.0
 
 
 def _srgb_decode(c):
@@ -141,15 +146,26 @@ def write_png(path, image, force=False):
     return Path(path)
 
 
+def luminance(rgb):
+    """Relative luminance ``(h, w)`` of linear RGB ``(h, w, 3)`` (Rec. 709 weights); a single
+    channel ``(h, w)`` is returned as it is."""
+    d = np.asarray(rgb, float)
+    return d @ np.array([0.2126, 0.7152, 0.0722]) if d.ndim == 3 else d
+
+
+def difference_scale(diff):
+    """The magnitude a false-colour difference shows at full colour: the
+    :data:`DIFFERENCE_PERCENTILE`-th percentile of the luminance's |diff| (1 when that is 0)."""
+    return float(np.percentile(np.abs(luminance(diff)), DIFFERENCE_PERCENTILE)) or 1.0
+
+
 def false_colour(diff, scale=None):
     """A signed difference image as 8-bit RGB: blue where negative, red where positive, white
-    at 0 (luminance of ``diff``); ``scale`` is the magnitude shown at full colour (default the
-    99th percentile of |diff|)."""
-    d = np.asarray(diff, float)
-    if d.ndim == 3:
-        d = d @ np.array([0.2126, 0.7152, 0.0722])
+    at 0 (luminance of ``diff``); ``scale`` is the magnitude shown at full colour (default
+    :func:`difference_scale`), larger magnitudes are clipped to it."""
+    d = luminance(diff)
     if scale is None:
-        scale = float(np.percentile(np.abs(d), 99)) or 1.0
+        scale = difference_scale(d)
     t = np.clip(d / scale, -1.0, 1.0)
     r = np.where(t < 0, 1.0 + t, 1.0)
     b = np.where(t > 0, 1.0 - t, 1.0)
@@ -157,12 +173,30 @@ def false_colour(diff, scale=None):
     return np.round(np.stack([r, g, b], axis=-1) * 255.0).astype(np.uint8)
 
 
+def flip_error(test, reference):
+    """NVIDIA's HDR-FLIP (Andersson et al. 2021, the ``flip-evaluator`` package) of linear RGB
+    ``test`` against ``reference``: ``(mean, error)``, the per-pixel error ``(h, w)`` in
+    [0, 1]. Negative radiance counts as 0."""
+    import flip_evaluator
+    error, mean, _ = flip_evaluator.evaluate(
+        np.ascontiguousarray(np.maximum(reference, 0.0), np.float32),
+        np.ascontiguousarray(np.maximum(test, 0.0), np.float32), "HDR", applyMagma=False)
+    return float(mean), np.clip(np.asarray(error, float).reshape(error.shape[:2]), 0.0, 1.0)
+
+
+def magma(values):
+    """Values in [0, 1] ``(h, w)`` as 8-bit RGB through matplotlib's magma colour map (FLIP's
+    own: black at 0, pale yellow at 1)."""
+    from matplotlib import colormaps
+    rgb = colormaps["magma"](np.clip(np.asarray(values, float), 0.0, 1.0))[..., :3]
+    return np.round(rgb * 255.0).astype(np.uint8)
+
+
 def metrics(test, reference, flip=True):
     """Image differences of ``test`` against ``reference`` (linear RGB ``(h, w, 3)``): RMSE,
     relative MSE (mean of (t - r)^2 / (r^2 + 0.01), Rousselle et al. 2011's denoising metric)
-    and NVIDIA's HDR-FLIP mean (Andersson et al. 2021, through the ``flip-evaluator``
-    package). Returns ``(metrics, flip_map)``, the map an 8-bit magma image (None without
-    ``flip``)."""
+    and the HDR-FLIP mean (:func:`flip_error`). Returns ``(metrics, flip_map)``, the map an
+    8-bit magma image of the per-pixel FLIP error (None without ``flip``)."""
     t = np.asarray(test, float)
     r = np.asarray(reference, float)
     if t.shape != r.shape:
@@ -174,10 +208,6 @@ def metrics(test, reference, flip=True):
            "mean_reference": [float(x) for x in r.reshape(-1, r.shape[-1]).mean(axis=0)]}
     flip_map = None
     if flip:
-        import flip_evaluator
-        emap, mean, _ = flip_evaluator.evaluate(
-            np.ascontiguousarray(np.maximum(r, 0.0), np.float32),
-            np.ascontiguousarray(np.maximum(t, 0.0), np.float32), "HDR")
-        out["flip"] = float(mean)
-        flip_map = np.round(np.clip(emap, 0.0, 1.0) * 255.0).astype(np.uint8)
+        out["flip"], error = flip_error(t, r)
+        flip_map = magma(error)
     return out, flip_map

@@ -12,7 +12,8 @@ matplotlib are imported only when a picture is made, so ``import brdf.viz`` stay
 
 from .lobes import lobe_plotter, lobe_surface, plot_lobes
 from .plots import (albedo_plot, corner_plot, inplane_plot, predictive_plot, residual_plot,
-                    save_figure, slice_plot)
+                    save_figure, slice_plot, validation_figure)
 
 __all__ = ["plot_lobes", "lobe_plotter", "lobe_surface", "inplane_plot", "slice_plot",
-           "albedo_plot", "residual_plot", "corner_plot", "predictive_plot", "save_figure"]
+           "albedo_plot", "residual_plot", "corner_plot", "predictive_plot",
+           "validation_figure", "save_figure"]

@@ -1,7 +1,8 @@
 """The 2-D plots BRDF analysts expect, with matplotlib: in-plane polar lobes of measurements
 against a fit, the theta_h / theta_d image slice in the MERL layout, directional albedo against
-theta_i, residual maps of a fit over a table's samples, and the posterior's corner plot and
-predictive bands (drawn from :class:`brdf.fitting.mcmc.Posterior`).
+theta_i, residual maps of a fit over a table's samples, the posterior's corner plot and
+predictive bands (drawn from :class:`brdf.fitting.mcmc.Posterior`), and the validation renders
+of a table and its fit in one figure (measured | fitted | difference | FLIP).
 
 Each function returns a :class:`matplotlib.figure.Figure` built without pyplot, so no window
 system or backend choice is involved (PNGs are drawn by Agg); :func:`save_figure` writes one
@@ -19,7 +20,7 @@ from .samples import (channel_count, channel_label, channel_values, in_plane,
                       in_plane_directions, incidence, is_table, label, samples_near)
 
 __all__ = ["inplane_plot", "slice_plot", "albedo_plot", "residual_plot", "corner_plot",
-           "predictive_plot", "save_figure", "F_LABEL"]
+           "predictive_plot", "validation_figure", "save_figure", "F_LABEL"]
 
 F_LABEL = "f_r [1/sr]"
 #: Decades below the peak that a log-scale polar plot shows.
@@ -32,6 +33,12 @@ SCATTER_POINTS = 20000
 #: Line colours of successive incidence angles or subjects (matplotlib's tab10).
 CYCLE = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
          "#7f7f7f", "#bcbd22", "#17becf")
+#: Grey of pixels and bins without a value (below the horizon, no sample).
+GAP_GREY = "#dddddd"
+#: Decades under the peak that a slice's log colours span; lower values take the darkest colour.
+SLICE_DECADES = 4.0
+#: Narrowest panel of :func:`validation_figure`, in pixels at the figure's dpi.
+MIN_PANEL_PIXELS = 256
 #: Colours of named channels.
 CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
 
@@ -39,7 +46,18 @@ CHANNEL_COLOURS = {"r": "#d62728", "g": "#2ca02c", "b": "#1f77b4"}
 def _grey_gaps(name):
     """Colour map ``name`` drawing missing pixels (NaN: below the horizon, no sample) grey."""
     from matplotlib import colormaps
-    return colormaps[name].with_extremes(bad="#dddddd")
+    return colormaps[name].with_extremes(bad=GAP_GREY)
+
+
+def _key(fig, entries):
+    """A legend under the figure of what its masked and clipped regions mean: ``entries`` are
+    ``(colours, text)`` pairs, a list of colours drawn as patches side by side."""
+    from matplotlib.legend_handler import HandlerTuple
+    from matplotlib.patches import Patch
+    handles = [tuple(Patch(facecolor=c, edgecolor="#999999") for c in colours)
+               for colours, _ in entries]
+    fig.legend(handles, [text for _, text in entries], loc="outside lower center", fontsize=7,
+               frameon=False, handler_map={tuple: HandlerTuple(ndivide=None)})
 
 
 def save_figure(fig, path, force=False, dpi=100):
@@ -75,11 +93,16 @@ def _in_plane_samples(data, wi):
     return samples_near(data, wi, plane=True)
 
 
+def _polar_floor(peak):
+    """The round value at least :data:`POLAR_DECADES` below ``peak`` that a log-radius polar
+    plot puts at its centre (lower values are drawn there too)."""
+    return 10.0 ** math.floor(math.log10(peak) - POLAR_DECADES)
+
+
 def _log_radius(ax, peak):
-    """Map values to radii in decades above a round floor at least :data:`POLAR_DECADES`
-    below ``peak``; ticks read in 1/sr."""
+    """Map values to radii in decades above :func:`_polar_floor`; ticks read in 1/sr."""
     from matplotlib.ticker import FixedLocator, FuncFormatter
-    floor = 10.0 ** math.floor(math.log10(peak) - POLAR_DECADES)
+    floor = _polar_floor(peak)
     top = math.ceil(math.log10(peak / floor) - 1e-9)
     ax.set_rlim(0.0, top)
     ax.yaxis.set_major_locator(FixedLocator(np.arange(1, top + 1)))
@@ -140,6 +163,7 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
     ax.set_thetamin(-90)
     ax.set_thetamax(90)
     radius = _log_radius(ax, peak) if log else (lambda f: f)
+    floor = _polar_floor(peak)
     for k, (t, curve, points) in enumerate(rows):
         colour = CYCLE[k % len(CYCLE)]
         ax.plot(np.radians(angles), radius(curve), color=colour, lw=1.6,
@@ -150,6 +174,12 @@ def inplane_plot(subject, theta_i=(0.0, 30.0, 60.0), phi_i=0.0, *, data=None, lo
                     mfc="none", mew=0.9)
     if any(p is not None and len(p[0]) for _, _, p in rows):
         ax.plot([], [], "o", color="black", mfc="none", label="measured")
+    lowest = min([np.nanmin(c) for _, c, _ in rows]
+                 + [np.nanmin(p[1]) for _, _, p in rows if p is not None and len(p[1])])
+    if log and lowest < floor:
+        # a log radius has no room for them: they are drawn at the centre, and the legend
+        # says so
+        ax.plot([], [], " ", label=f"under {floor:g} 1/sr:\ndrawn at the centre")
     quantity = "f_r cos(theta_o) [1/sr]" if cosine else F_LABEL
     ax.set_title(_title(subject, channel, f"phi_i = {float(phi_i):g}°"), fontsize=9)
     # the half disc leaves the lower half of the axes empty: pull the label up into it
@@ -175,7 +205,11 @@ def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
 
     Specular reflection is the left column (theta_h = 0), retro-reflection the bottom row
     (theta_d = 0), grazing Fresnel rises at the top; pixels whose directions fall below the
-    horizon are left blank (Burley 2012, "Physically-based shading at Disney", fig. 5).
+    horizon, or whose value is not positive (a log scale has no place for it), are left grey
+    (Burley 2012, "Physically-based shading at Disney", fig. 5). The colours span at most
+    :data:`SLICE_DECADES` decades under the peak; lower values are clipped to the darkest. A
+    legend under the image says which of these the picture holds, and that the darkest colour
+    is the lowest value, not a gap.
     """
     from matplotlib.colors import LogNorm
     _check_channel(subject, channel)
@@ -187,20 +221,31 @@ def slice_plot(subject, phi_d=90.0, *, channel=None, resolution=90):
     wi, wo = directions_from_half_diff(theta_h[None, :], 0.0, theta_d[:, None],
                                        math.radians(phi_d))
     f = channel_values(subject.eval(wi, wo), channel)
-    f = np.where((wi[..., 2] > 0) & (wo[..., 2] > 0) & (f > 0), f, np.nan)
+    below = (wi[..., 2] <= 0) | (wo[..., 2] <= 0)
+    not_positive = ~below & ~(f > 0)
+    f = np.where(below | not_positive, np.nan, f)
     if not np.isfinite(f).any():
         raise InputError(f"{subject}: no positive value on the slice phi_d = {phi_d:g}")
-    fig = _figure(5.6, 4.6)
+    peak = float(np.nanmax(f))
+    floor = max(float(np.nanmin(f)), peak * 10.0 ** -SLICE_DECADES)
+    clipped = bool(np.nanmin(f) < floor)
+    cmap = _grey_gaps("magma")
+    fig = _figure(5.6, 5.0)
     ax = fig.add_subplot()
-    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=_grey_gaps(
-        "magma"),
-                      norm=LogNorm(vmin=np.nanmax(f) * 1e-4 if np.nanmin(f) < np.nanmax(f)
-                                   * 1e-4 else np.nanmin(f), vmax=np.nanmax(f)),
-                      interpolation="nearest")
+    image = ax.imshow(f, origin="lower", extent=(0, 1, 0, 90), aspect="auto", cmap=cmap,
+                      norm=LogNorm(vmin=floor, vmax=peak), interpolation="nearest")
     _merl_theta_h_axis(ax)
     ax.set_ylabel("theta_d [deg]")
     ax.set_title(_title(subject, channel, f"phi_d = {phi_d:g}°", width=60), fontsize=9)
-    fig.colorbar(image, ax=ax, label=F_LABEL + " (log)")
+    fig.colorbar(image, ax=ax, label=F_LABEL + " (log)", extend="min" if clipped else "neither")
+    keys = [([cmap(0.0)], f"darkest: {floor:.3g} 1/sr" + (
+        f" and below ({SLICE_DECADES:g} decades under the peak; lower values clipped)"
+        if clipped else ", the lowest value (not missing data)"))]
+    if below.any():
+        keys.append(([GAP_GREY], "grey: no value, a direction below the horizon"))
+    if not_positive.any():
+        keys.append(([GAP_GREY], "grey: f_r <= 0, which a log scale cannot show"))
+    _key(fig, keys)
     return fig
 
 
@@ -282,7 +327,8 @@ def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
     count, _, _ = np.histogram2d(x, y, edges)
     mean = np.where(count > 0, total / np.maximum(count, 1), np.nan).T
     limit = max(float(np.nanpercentile(np.abs(mean), 99)), 1e-3)
-    fig = _figure(11.0, 4.6)
+    clipped = int(np.sum(np.abs(mean) > limit))
+    fig = _figure(11.0, 5.0)
     left, right = fig.subplots(1, 2)
     pick = np.unique(np.linspace(0, len(measured) - 1, min(len(measured), SCATTER_POINTS))
                      .round().astype(int))
@@ -303,7 +349,16 @@ def residual_plot(model, table, *, channel=None, cutoff=CUTOFF_DEG, bins=None):
     _merl_theta_h_axis(right)
     right.set_ylabel("theta_d [deg]")
     right.set_title("mean over samples in each bin (blue: model too low)", fontsize=9)
-    fig.colorbar(image, ax=right, label="log10(model / measured)")
+    fig.colorbar(image, ax=right, label="log10(model / measured)",
+                 extend="both" if clipped else "neither")
+    keys = [([GAP_GREY], f"grey: no sample in the bin (beyond the {cutoff:g}° cutoff, below the "
+                       "horizon or not measured)")] if np.isnan(mean).any() else []
+    if clipped:
+        ends = image.get_cmap()
+        keys.append(([ends(0.0), ends(1.0)], f"{clipped} of {int(np.sum(count > 0))} bins "
+                     f"beyond ±{limit:.3g} (the 99th percentile): clipped to the bar's ends"))
+    if keys:
+        _key(fig, keys)
     fig.suptitle(_title(table, channel, f"fitted by {label(model)}", width=140), fontsize=9)
     return fig
 
@@ -370,4 +425,105 @@ def predictive_plot(posterior, data=None, *, theta_i=30.0, draws=100, seed=0, ch
         ax.grid(alpha=0.3)
     # the bands are per channel: no channel choice in the title
     fig.suptitle(textwrap.fill(f"{label(model)}, posterior predictive", 140), fontsize=9)
+    return fig
+
+
+# -- validation renders -----------------------------------------------------------------------
+
+def _percent(fraction):
+    """A share of pixels for a legend: ``0 %``, ``< 0.1 %``, ``2.4 %``."""
+    if fraction == 0:
+        return "0 %"
+    return "< 0.1 %" if fraction < 0.001 else f"{100 * fraction:.2g} %"
+
+
+def _radiance_bar(fig, ax, top, clipped):
+    """The colour bar of a tone-mapped render: linear radiance 0 to ``top`` through the same
+    sRGB encoding as :func:`brdf.render.image.tonemap`, grey; ``clipped`` is the share of
+    pixels with a channel above ``top`` (drawn white)."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import ListedColormap, Normalize
+    from ..render.image import tonemap
+    ramp = tonemap(np.linspace(0.0, 1.0, 256)) / 255.0
+    grey = ListedColormap(np.repeat(ramp[:, None], 3, axis=1))
+    bar = fig.colorbar(ScalarMappable(Normalize(0.0, top), grey), ax=ax, location="bottom",
+                       extend="max" if clipped else "neither", shrink=0.9)
+    bar.set_label(f"radiance per channel (linear), sRGB display\nabove {top:.3g} clipped to "
+                  f"white:\n{_percent(clipped)} of pixels", fontsize=8)
+    return bar
+
+
+def validation_figure(measured, fitted, *, flip=None, exposure=0.0, title=None, dpi=100):
+    """Measured | fitted | difference | FLIP: the validation renders of a table and its fit
+    (the same scene and seed, :func:`brdf.render.validate`) in one figure, each panel with its
+    colour bar.
+
+    The two renders share a tone mapping (:func:`brdf.render.image.tonemap` at ``exposure``;
+    the bar says how many pixels it clips); the difference is the luminance of fitted minus
+    measured in blue (fit darker) to red (fit brighter), clipped at
+    :func:`brdf.render.image.difference_scale`; FLIP is the per-pixel HDR-FLIP error of the
+    fit against the measurement, 0 to 1.
+
+    Parameters
+    ----------
+    measured, fitted : ndarray (h, w, 3)
+        Linear RGB radiance (``RenderResult.image``).
+    flip : ndarray (h, w), optional
+        The per-pixel FLIP error (default: :func:`brdf.render.image.flip_error`).
+    exposure : float
+        Stops, as :func:`~brdf.render.image.tonemap`.
+    title : str, optional
+        A title above the panels (the scene, its settings, the metrics).
+    dpi : int
+        The resolution the figure will be saved at: the panels are sized so that a render
+        keeps about its own pixels.
+    """
+    from ..render.image import (DIFFERENCE_PERCENTILE, difference_scale, flip_error, luminance,
+                                tonemap)
+    measured = np.asarray(measured, float)
+    fitted = np.asarray(fitted, float)
+    if measured.shape != fitted.shape or measured.ndim != 3 or measured.shape[-1] != 3:
+        raise InputError(f"expected two linear RGB images (h, w, 3) of one size, got shapes "
+                         f"{measured.shape} and {fitted.shape}")
+    if flip is None:
+        flip = flip_error(fitted, measured)[1]
+    height, width = measured.shape[:2]
+    # each panel about the render's own size (at least MIN_PANEL_PIXELS wide, so that a small
+    # render still leaves room for its bar's labels), plus the bars below and the titles
+    panel = max(width, MIN_PANEL_PIXELS) / dpi
+    size = np.round(np.array([4 * panel + 0.6, panel * height / width + 1.6
+                              + (0.3 if title else 0.0)]) * dpi) / dpi  # whole pixels
+    fig = _figure(*size)
+    axes = fig.subplots(1, 4)
+    top = 2.0 ** -float(exposure)
+    for ax, image, name in ((axes[0], measured, "measured (the table rendered)"),
+                            (axes[1], fitted, "fitted (the model rendered)")):
+        ax.imshow(tonemap(image, exposure), interpolation="antialiased")
+        ax.set_title(name, fontsize=9)
+        _radiance_bar(fig, ax, top, float(np.mean(np.any(image > top, axis=-1))))
+    diff = luminance(fitted - measured)
+    scale = difference_scale(diff)
+    clipped = float(np.mean(np.abs(diff) > scale))
+    shown = axes[2].imshow(diff, cmap="bwr", vmin=-scale, vmax=scale,
+                           interpolation="antialiased")
+    axes[2].set_title("difference: fitted - measured\n(red: fit brighter, blue: darker)",
+                      fontsize=9)
+    bar = fig.colorbar(shown, ax=axes[2], location="bottom", shrink=0.9,
+                       extend="both" if clipped else "neither")
+    bar.set_label(f"luminance difference (linear)\nclipped at ±{scale:.3g} (the "
+                  f"{DIFFERENCE_PERCENTILE:g}th percentile):\n{_percent(clipped)} of pixels "
+                  "beyond", fontsize=8)
+    error = np.asarray(flip, float).reshape(height, width)
+    shown = axes[3].imshow(error, cmap="magma", vmin=0.0, vmax=1.0,
+                           interpolation="antialiased")
+    axes[3].set_title(f"FLIP error of the fit (mean {float(np.mean(error)):.4g})", fontsize=9)
+    bar = fig.colorbar(shown, ax=axes[3], location="bottom", shrink=0.9)
+    bar.set_label("HDR-FLIP per pixel\n0: no visible difference\n1: the largest", fontsize=8)
+    for ax in axes:
+        # a frame, no ticks: the white of a zero difference still has an edge
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if title:
+        # at most about 7.5 pixels a character at 9 points
+        fig.suptitle(textwrap.fill(title, int(fig.get_figwidth() * dpi / 7.5)), fontsize=9)
     return fig

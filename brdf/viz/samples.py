@@ -31,12 +31,10 @@ def is_table(subject):
 def label(subject, digits=4):
     """A short name for titles: a table's name, or a model's spec with its numbers rounded to
     ``digits`` significant digits (a fit's spec carries all 17)."""
-    import re
-    text = str(subject)
+    from ..formatting import round_numbers
     if is_table(subject):
-        return text
-    return re.sub(r"-?\d+\.\d+(?:[eE][-+]?\d+)?",
-                  lambda m: f"{float(m.group()):.{digits}g}", text)
+        return str(subject)
+    return round_numbers(subject, digits)
 
 
 def channel_count(subject):

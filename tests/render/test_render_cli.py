@@ -117,7 +117,7 @@ def test_validate_writes_images_and_metrics(capsys, tmp_path, measured):
     assert fitted.shape == (6, 8, 3)
     assert metrics["rmse"] == pytest.approx(np.sqrt(np.mean((fitted - ref) ** 2)), rel=1e-5)
     assert metrics["rmse"] > 0 and 0 <= metrics["flip"] <= 1
-    for name in ("measured.png", "fitted.png", "difference.png", "flip.png"):
+    for name in ("measured.png", "fitted.png", "difference.png", "flip.png", "comparison.png"):
         assert (outdir / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "RMSE" in out and "FLIP" in out
     # a second run keeps the outputs unless --force
