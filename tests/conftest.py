@@ -7,6 +7,13 @@ import sys
 from hypothesis import settings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+# Subprocesses (scripts, the installed brdf-fit, spawned workers) import the checkout's brdf,
+# as this process does (python -m pytest puts it first on sys.path): its kernels are the ones
+# the suite compiles before it starts, so a subprocess never compiles one on first use and
+# says so on its stderr. The installed copy is the same code.
+_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    p for p in (_ROOT, os.environ.get("PYTHONPATH")) if p)
 
 settings.register_profile("brdf", derandomize=True, deadline=None, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "brdf"))

@@ -318,8 +318,22 @@ def run_cli(argv, seconds=TIME_BUDGET):
     return status, err.getvalue(), [f"{w.category.__name__}: {w.message}" for w in caught]
 
 
+#: A line long work prints on stderr off a terminal (brdf.progress: ``brdf-fit: fit: 853
+#: evals in 2.1 s``, ``brdf-fit: batch: t1.csv fitted (2 of 3) after 4.1 s``); such lines come
+#: before any error and are not part of it.
+PROGRESS_LINE = re.compile(r"brdf(-fit)?: (fit|mcmc|render|batch|demo): .* (in|after) "
+                           r"\d+(\.\d+)? s$")
+
+
+def without_progress(err):
+    """``err`` less its progress lines (:data:`PROGRESS_LINE`)."""
+    return "".join(line for line in err.splitlines(keepends=True)
+                   if not PROGRESS_LINE.match(line.rstrip("\n")))
+
+
 def verdict(status, stderr, caught, path):
-    """What broke the promise (a short text), or None."""
+    """What broke the promise (a short text), or None. Progress lines of work that finished
+    before the error may precede its one line."""
     if status not in (0, 1, 2):
         return f"status {status}: {stderr.strip()[-300:]}"
     if "Traceback" in stderr:
@@ -327,7 +341,7 @@ def verdict(status, stderr, caught, path):
     if caught:
         return f"warning: {caught[0][:200]}"
     if status == 2:
-        lines = stderr.splitlines()
+        lines = without_progress(stderr).splitlines()
         if len(lines) != 1 or not lines[0].startswith("brdf-fit: error: "):
             return f"{len(lines)} stderr lines: {stderr.strip()[:300]}"
         if Path(path).name not in lines[0]:

@@ -7,7 +7,6 @@ what a shell sees (exit status, a single stderr line, no traceback).
 import json
 import math
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -17,6 +16,7 @@ import pytest
 import brdf
 from brdf.models import MODELS
 from brdf_cli.main import main
+from fuzzing import without_progress  # noqa: F401  (the CLI tests' helpers live together)
 
 SCRIPT = shutil.which("brdf-fit", path=os.path.dirname(sys.executable)) or "brdf-fit"
 
@@ -30,14 +30,6 @@ def run(capsys, *argv):
 
 def run_script(*argv):
     return subprocess.run([SCRIPT, *argv], capture_output=True, text=True, timeout=300)
-
-
-def without_progress(err):
-    """``err`` less the lines long work prints off a terminal (brdf.progress: ``brdf-fit:
-    fit: 853 evals in 2.1 s``), which come before any error."""
-    return "".join(line for line in err.splitlines(keepends=True)
-                   if not re.match(r"brdf-fit: (fit|mcmc|render|batch): .* in \d+\.\d s$",
-                                   line.rstrip("\n")))
 
 
 def assert_one_error_line(err, *fragments):

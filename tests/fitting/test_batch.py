@@ -122,7 +122,10 @@ def test_the_same_script_with_the_main_guard_runs(folder):
     done = _script(folder, guarded=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["statuses", "fitted", "fitted"]
-    assert done.stderr == ""
+    # the script and its workers import the installed package, whose kernels may still be
+    # uncompiled here (the suite compiles the checkout's): their notices are the only lines
+    assert all(line.startswith("brdf: compiling ") for line in done.stderr.splitlines()), \
+        done.stderr
 
 
 def test_workers_failing_earlier_in_the_script_get_the_same_line(folder):
