@@ -266,13 +266,15 @@ def fit(args, out):
             post.corner(args.corner, force=args.force)
     if args.output:
         save_report(report, args.output, args.force)
-    exported = target and brdf.export(result, args.export, target, force=args.force)
     if args.json:
+        exported = target and brdf.export(result, args.export, target, force=args.force)
         out.json(report if not exported else {**report, "export": exported.to_dict()})
     else:
+        # the fit first: an export that is refused must not hide what was fitted
         out.text(str(result) + ("" if post is None else "\n" + str(post)))
-        if exported:
-            export_report(exported, out, False)
+        if target:
+            export_report(brdf.export(result, args.export, target, force=args.force), out,
+                          False)
     if post is not None and not post.converged:
         return EXIT_CHECK_FAILED
     failed = not result.converged or (args.energy_constraint and not result.energy["holds"])

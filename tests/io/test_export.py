@@ -268,6 +268,22 @@ def test_cli_export_errors_exit_2_before_any_work(capsys, report, argv, fragment
     assert sorted(p.name for p in report.parent.iterdir()) == ["plastic.csv"]
 
 
+def test_cli_fit_prints_the_fit_before_an_export_that_is_refused(capsys, tmp_path):
+    """A bright fit whose lobes' scales add up to more than 1 has no Mitsuba blend today: the
+    fit's table and its saved report come first, then the export's one error line."""
+    table = tmp_path / "bright.csv"
+    brdf.write(brdf.measure("lambert(albedo=0.9) + ggx(ks=0.4, alpha=0.3)", "grid:15,30"),
+               table)
+    out_json = tmp_path / "fit.json"
+    status, out, err = run(capsys, "fit", str(table), "lambert + ggx", "-o", str(out_json),
+                           "--export", "mitsuba")
+    assert status == 2
+    assert_one_error_line(without_progress(err), "no mitsuba equivalent")
+    assert "fitted: " in out and "verdict:" in out
+    assert brdf.load_report(out_json).spec in out
+    assert not (tmp_path / "fit.xml").exists()
+
+
 def test_cli_fit_export_to_a_path_reports_it_under_export_in_json(capsys, report):
     target = report.parent / "material.gltf"
     status, out, err = run(capsys, "fit", str(report), "lambert + ggx(alpha=0.4)", "--json",
