@@ -19,7 +19,7 @@ import numpy as np
 
 from .kernel_groups import COLD_SECONDS, announce_first_compiles
 
-__all__ = ["GROUPS", "check_groups", "precompile", "compile_groups", "starting", "describe",
+__all__ = ["GROUPS", "PROCESSES", "check_groups", "precompile", "compile_groups", "starting", "describe",
            "main"]
 
 _SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
@@ -78,6 +78,8 @@ def _render():
 #: Kernel groups by name, each compiled by small calls of the public functions that use them
 #: (the same names as :data:`brdf.kernel_groups.KERNELS`).
 GROUPS = {"models": _models, "fitting": _fitting, "tables": _tables, "render": _render}
+#: Processes the groups are dealt out to by default (one per core of a 2-core machine).
+PROCESSES = 2
 
 
 def compile_groups(names):
@@ -130,7 +132,7 @@ def check_groups(groups):
                          f"{', '.join(GROUPS)}")
 
 
-def precompile(groups=tuple(GROUPS), processes=2):
+def precompile(groups=tuple(GROUPS), processes=PROCESSES):
     """Compile the kernels of ``groups`` into numba's disk cache, in ``processes`` processes.
 
     Parameters
@@ -167,7 +169,7 @@ def main(argv=None):
     except InputError as exc:
         print(f"brdf.precompile: error: {exc}", file=sys.stderr)
         return 2
-    print(f"brdf.precompile: {starting(names, 2)}", file=sys.stderr, flush=True)
+    print(f"brdf.precompile: {starting(names, PROCESSES)}", file=sys.stderr, flush=True)
     took = precompile(names)
     for name, done in took.items():
         print(describe(name, done))

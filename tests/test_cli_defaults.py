@@ -10,6 +10,7 @@ import pytest
 
 import brdf.demo
 import brdf.gonioreflectometer
+import brdf.precompile
 import brdf.properties
 import brdf.render
 import brdf.viz.lobes
@@ -30,6 +31,7 @@ CALLS = {
     "validate": [brdf.render.validate],
     "lobe": [brdf.viz.lobes.lobe_plotter],
     "demo": [brdf.demo.run],
+    "precompile": [brdf.precompile.precompile],
 }
 #: options whose command-line default differs on purpose (none today)
 DIFFERENT = set()
