@@ -14,15 +14,22 @@ def add_parser(sub, subcommand):
                    "Convert the model of a JSON fit report (or a model spec) to a Mitsuba 3 BSDF "
                    "or a glTF 2.0 metallic-roughness material. The file says, line by line, what "
                    "maps to what and which parts are exact or approximate, with the largest "
-                   "relative difference between the two BRDFs. Models without an equivalent "
-                   "(phong, ward, lafortune, ...) are refused with the list of those that "
-                   "export. Exit status 1 when the conversion is approximate.",
+                   "relative difference between the two BRDFs. A model the format has no "
+                   "counterpart for (phong, ward, oren-nayar, a glTF base colour above 1, ...) "
+                   "is written as the closest material of the format's family, fitted to it, "
+                   "with its relative RMS difference; beyond --max-error it is refused.",
                    "print what was written as JSON")
     p.add_argument("subject", metavar="REPORT|SPEC",
                    help="a JSON fit report (brdf-fit fit -o) or a model spec")
     p.add_argument("--format", required=True, choices=tuple(FORMATS), help=FORMAT_HELP)
     p.add_argument("-o", "--output", required=True, metavar="PATH", help="the file to write")
     p.add_argument("--force", action="store_true", help="replace PATH if it exists")
+    p.add_argument("--exact", action="store_true",
+                   help="write only an exact conversion: exit status 1, nothing written, when "
+                        "it would be approximate")
+    p.add_argument("--max-error", type=float, default=None, metavar="E",
+                   help="largest relative RMS difference of a closest material that is "
+                        "written (default 0.75)")
 
 
 def add_fit_options(p):
@@ -52,7 +59,7 @@ def export_path(args):
 
 
 def run(args, out):
-    """Convert and write; exit 1 when the conversion is approximate."""
+    """Convert and write; with ``--exact``, exit 1 without writing an approximate one."""
     import brdf
     from .commands import EXIT_CHECK_FAILED, EXIT_OK, load_subject, refuse_existing
     refuse_existing(args, args.output)
@@ -60,9 +67,19 @@ def run(args, out):
     if not isinstance(model, brdf.models.Model):
         raise brdf.InputError(f"{args.subject}: a measured table; export takes a fit report or "
                               "a model spec (fit the table first: brdf-fit fit ... -o)")
-    result = brdf.export(model, args.format, args.output, force=args.force)
+    if args.exact:
+        result = brdf.export(model, args.format, max_error=args.max_error)
+        if not result.exact:
+            if args.json:
+                out.json(result.to_dict())
+            else:
+                out.text(f"{result}\n{args.output} not written: the conversion is approximate "
+                         "and --exact was given")
+            return EXIT_CHECK_FAILED
+    result = brdf.export(model, args.format, args.output, force=args.force,
+                         max_error=args.max_error)
     report(result, out, args.json)
-    return EXIT_OK if result.exact else EXIT_CHECK_FAILED
+    return EXIT_OK
 
 
 def report(result, out, as_json):

@@ -321,7 +321,7 @@ def run_cli(argv, seconds=TIME_BUDGET):
 #: A line long work prints on stderr off a terminal (brdf.progress: ``brdf-fit: fit: 853
 #: evals in 2.1 s``, ``brdf-fit: batch: t1.csv fitted (2 of 3) after 4.1 s``); such lines come
 #: before any error and are not part of it.
-PROGRESS_LINE = re.compile(r"brdf(-fit)?: (fit|mcmc|render|batch|demo): .* (in|after) "
+PROGRESS_LINE = re.compile(r"brdf(-fit)?: (fit|mcmc|render|batch|demo|export): .* (in|after) "
                            r"\d+(\.\d+)? s$")
 
 

@@ -20,9 +20,9 @@ Mitsuba 3 (``format="mitsuba"``, a ``<scene>`` holding one ``<bsdf id="material"
       approximation (within 0.31 %), so Beckmann lobes are approximate too.
     * ``mirror`` -> ``conductor`` with ``specular_reflectance`` and the Fresnel as above.
     * Sums -> nested ``blendbsdf``. A blend is convex, (1 - w) f1 + w f2, so each lobe is written
-      with its scale divided by its weight: exact, as long as the scales fit in Mitsuba's [0, 1]
-      reflectances (weights proportional to each lobe's largest scale: possible when those add
-      up to at most 1). ``roughplastic`` is never equivalent: its diffuse part carries Fresnel
+      with its scale divided by its weight (weights proportional to each lobe's largest scale):
+      exact. Reflectances above 1 (scales adding up to more than 1) are ``srgb`` textures with
+      ``unbounded``, since Mitsuba refuses an ``<rgb>`` reflectance outside [0, 1]. ``roughplastic`` is never equivalent: its diffuse part carries Fresnel
       transmittance factors and an internal-reflection normalisation (Mitsuba 3 docs,
       roughplastic), so it is not used.
 
@@ -40,6 +40,12 @@ visibility of the Khronos glTF Sample Viewer)
       glTF's dielectric is (1 - F) diffuse + F specular, exact where F is constant (Fresnel
       ``none`` with a grey ks), otherwise the diffuse part is right at normal incidence only.
     * Beckmann lobes have no glTF equivalent (glTF is GGX only), nor have the other families.
+
+Models a format has no counterpart for (other families, parameters beyond its ranges) are
+written as the closest material of its family (:mod:`brdf.io.closest_material`: Mitsuba's
+diffuse + roughconductor, glTF's parameters), with ``error``, the relative RMS difference, in
+the file and the result; only custom lobes, spectral models, delta lobes in glTF and models
+farther than ``max_error`` from anything the format holds are refused.
 """
 
 import json
@@ -87,6 +93,12 @@ class Export:
         One statement per conversion: what maps to what, exact or approximate and why.
     deviation : float
         Largest relative difference between our BRDF and the target's (:func:`relative_deviation`).
+    error : float
+        Relative RMS difference weighted by projected solid angle
+        (:func:`brdf.io.closest_material.relative_rms`); 0 for an exact export.
+    closest : str or None
+        For a model without a counterpart in the format: what the closest material is (the
+        fitted family), None otherwise.
     equivalent : object
         What the target evaluates: a model (Mitsuba) or the glTF material object.
     path : str or None
@@ -101,21 +113,30 @@ class Export:
     deviation: float
     equivalent: object = field(repr=False)
     path: str = None
+    error: float = 0.0
+    closest: str = None
 
     def to_dict(self):
         return {"format": self.format, "path": self.path, "spec": self.spec, "exact": self.exact,
-                "deviation": self.deviation, "notes": list(self.notes)}
+                "deviation": self.deviation, "error": self.error, "closest": self.closest,
+                "notes": list(self.notes)}
 
     def __str__(self):
-        verdict = "exact" if self.exact else f"approximate (deviation {self.deviation:.3g})"
+        verdict = "exact" if self.exact else (f"approximate (relative RMS difference "
+                                              f"{self.error:.3g}, largest {self.deviation:.3g})")
         head = f"{self.format} export of {self.spec}: {verdict}"
         if self.path:
             head += f"; wrote {self.path}"
         return "\n".join([head, *(f"  - {n}" for n in self.notes)])
 
 
-def export(obj, format, path=None, force=False):
+def export(obj, format, path=None, force=False, max_error=None):
     """Convert a model to a Mitsuba 3 BSDF or a glTF 2.0 material, and write it.
+
+    A model the format has no counterpart for (a family it lacks, or parameters beyond its
+    ranges) is written as the closest material of the format's family, fitted to the model
+    (:mod:`brdf.io.closest_material`), with how far it is stated in ``notes``, ``error`` and
+    ``deviation``.
 
     Parameters
     ----------
@@ -127,6 +148,9 @@ def export(obj, format, path=None, force=False):
         Where to write (atomically; an existing file only with ``force``). Without it nothing is
         written and the text is in the result.
     force : bool
+    max_error : float, optional
+        Largest relative RMS difference of a closest material that is written (default
+        :data:`brdf.io.closest_material.MAX_ERROR`); beyond it the model is refused.
 
     Returns
     -------
@@ -135,8 +159,9 @@ def export(obj, format, path=None, force=False):
     Raises
     ------
     InputError
-        For an unknown format, or a model without an equivalent in it (the message says which
-        models export).
+        For an unknown format, custom lobes, spectral models, delta lobes in glTF, and models
+        whose closest material in the format differs by more than ``max_error`` (the message
+        says which format holds them).
     """
     from . import atomic_output
     model = _model_of(obj)
@@ -146,12 +171,43 @@ def export(obj, format, path=None, force=False):
     if model.channels not in (1, 3):
         raise InputError(f"{model}: {model.channels} channels; {format} takes one channel or "
                          "RGB (spectral models have no wavelengths to convert)")
-    result = (_mitsuba if format == "mitsuba" else _gltf)(model)
+    from .closest_material import MAX_ERROR
+    limit = MAX_ERROR if max_error is None else _positive(max_error, "max_error")
+    try:
+        result = _EXACT[format](model)
+    except NoCounterpart as reason:
+        from ..progress import stage
+        with stage(f"export: closest {format} material"):
+            result = _CLOSEST[format](model, str(reason))
+        if result.error > limit:
+            raise _unreasonable(model, format, result, limit) from None
     if path is not None:
         with atomic_output(path, force) as tmp:
             tmp.write_text(result.text, encoding="utf-8")
         result = Export(**{**result.__dict__, "path": str(path)})
     return result
+
+
+class NoCounterpart(InputError):
+    """The format has no exact counterpart for a model (a family it lacks, or parameters
+    beyond its ranges); :func:`export` then writes the closest material."""
+
+
+def _positive(value, name):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0.0:
+        raise InputError(f"export: {name} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def _unreasonable(model, format, result, limit):
+    from .closest_material import smooth_part
+    smooth, _ = smooth_part(model)
+    holds = ("; Mitsuba 3's measured plugin reads any isotropic model as an RGL tensor "
+             "(brdf.write(model, 'material.bsdf'))" if smooth is not None
+             and not model.is_anisotropic else "")
+    return InputError(f"{model}: no reasonable {format} counterpart: the closest {result.closest} "
+                      f"differs by {result.error:.3g} relative RMS (more than max_error "
+                      f"{limit:.3g}){holds}")
 
 
 def _model_of(obj):
@@ -171,17 +227,21 @@ def _model_of(obj):
 
 
 def check_families(model, format):
-    """Raise the error :func:`export` would give for a model whose families ``format`` lacks,
-    without converting anything (``brdf-fit fit --export`` asks before it fits)."""
+    """Raise the error :func:`export` would give for a model whose lobes ``format`` cannot
+    hold even approximately (custom lobes; delta lobes in glTF), without converting anything
+    (``brdf-fit fit --export`` asks before it fits)."""
     model = _model_of(model)
     _refuse_custom(model, format)
-    shape = " + ".join(lobe.name for lobe in _gltf_lobes(model)[0])
-    if format == "gltf" and shape not in EXPORTABLE["gltf"]:
-        raise _unsupported(model, "gltf", ": glTF's microfacet lobe is GGX only"
-                           if "beckmann" in shape else "")
-    for lobe in model.lobes:
-        if format == "mitsuba" and lobe.name not in EXPORTABLE["mitsuba"]:
-            raise _unsupported(lobe, "mitsuba")
+    if format == "gltf":
+        _refuse_deltas(model)
+
+
+def _refuse_deltas(model):
+    deltas = sorted({lobe.name for lobe in model.lobes if lobe.delta})
+    if deltas:
+        raise InputError(f"{model}: no gltf equivalent for the delta lobe(s) "
+                         f"{', '.join(deltas)} (glTF's materials are GGX-rough); export to "
+                         "mitsuba, whose conductor holds them")
 
 
 def _refuse_custom(model, format):
@@ -195,7 +255,7 @@ def _refuse_custom(model, format):
 
 def _unsupported(model, format, why=""):
     names = ", ".join(EXPORTABLE[format])
-    return InputError(f"{model}: no {format} equivalent{why}; {format} export takes {names}")
+    return NoCounterpart(f"{model}: no {format} equivalent{why}; {format} maps {names} exactly")
 
 
 # --- the measured figure ------------------------------------------------------------------------
@@ -218,12 +278,19 @@ def relative_deviation(ours, theirs):
 
 # --- Mitsuba 3 ----------------------------------------------------------------------------------
 
-def _mi_value(name, value, kind=None):
-    """A Mitsuba property element: ``<float>`` for one value, ``<rgb>`` for three."""
+def _mi_value(name, value):
+    """A Mitsuba property element: ``<float>`` for one value, ``<rgb>`` for three. Mitsuba
+    refuses an ``<rgb>`` reflectance beyond [0, 1] (SRGBReflectanceSpectrum); an ``srgb``
+    texture with ``unbounded`` holds it (exact in RGB variants; spectral variants upsample it
+    as an emitter's colour)."""
     arr = np.atleast_1d(np.asarray(value, float))
     if arr.size == 1:
         return f'<float name="{name}" value="{float(arr[0])!r}"/>'
-    return f'<rgb name="{name}" value="{",".join(repr(float(v)) for v in arr)}"/>'
+    rgb = ",".join(repr(float(v)) for v in arr)
+    if arr.max() <= 1.0:
+        return f'<rgb name="{name}" value="{rgb}"/>'
+    return (f'<texture type="srgb" name="{name}"><rgb name="color" value="{rgb}"/>'
+            '<boolean name="unbounded" value="true"/></texture>')
 
 
 def _beckmann_g1_error():
@@ -339,9 +406,15 @@ def _mi_lobe(lobe, where, notes):
     raise _unsupported(lobe, "mitsuba")
 
 
-def _mitsuba(model):
+def _mitsuba(model, source=None, lead=(), closest=None):
+    """The Mitsuba file of ``model``, whose families Mitsuba holds; ``source`` (default
+    ``model``) is what the deviation is measured against and the comment names, ``lead`` the
+    notes that come first, ``closest`` the fitted family when ``model`` stands for it."""
     from ..models.base import Sum
-    check_families(model, "mitsuba")
+    unmapped = [lobe for lobe in model.lobes if lobe.name not in EXPORTABLE["mitsuba"]]
+    if unmapped:
+        raise _unsupported(unmapped[0], "mitsuba")
+    source = model if source is None else source
     lobes = list(model.lobes)
     names = model.lobe_names() if isinstance(model, Sum) else [model.name]
     notes, parts = [], []
@@ -353,9 +426,10 @@ def _mitsuba(model):
             continue
         parts.append((name, top, xml, seen))
     total = sum(p[1] for p in parts)
-    if total > 1.0 + 1e-12:
-        raise InputError(f"{model}: no mitsuba equivalent: the lobes' largest scales add up to "
-                         f"{total:.6g} > 1, and Mitsuba's reflectances must lie in [0, 1]")
+    if total > 1.0:
+        notes.append(f"the lobes' largest scales add up to {total:.6g} > 1: reflectances "
+                     "above 1 are written as unbounded srgb textures (an <rgb> reflectance "
+                     "must lie in [0, 1]), exact in Mitsuba's RGB variants")
     if not parts:
         body, seen = f'<bsdf type="diffuse">{_mi_value("reflectance", 0.0)}</bsdf>', None
     else:
@@ -367,18 +441,58 @@ def _mitsuba(model):
                                                        zip(parts, weights)) + "), exact")
         seen = _sum([p[3] for p in parts])
     body = body.replace("<bsdf ", f'<bsdf id="{MITSUBA_ID}" ', 1)
+    notes = [*lead, *notes]
     equivalent = seen if seen is not None else model
-    deviation = _model_deviation(model, equivalent) if seen is not None else 0.0
-    if any(lobe.name == "beckmann" for lobe in lobes):  # not in the equivalent: bound G1 G1
-        deviation = max(deviation, (1.0 + BECKMANN_G1_ERROR) ** 2 - 1.0)
+    deviation = _model_deviation(source, equivalent) if seen is not None else 0.0
     exact = deviation <= EXACT and not any("approximate" in n for n in notes)
-    comment = [f"brdf {_version()} export of {model}",
-               f"{'exact' if exact else 'APPROXIMATE'}: largest relative difference of f over "
-               f"directions up to 80 degrees {deviation:.3g}", *notes]
+    error = 0.0 if exact else _rms(source, equivalent.eval)
+    if any(lobe.name == "beckmann" for lobe in lobes):  # not in the equivalent: bound G1 G1
+        bound = (1.0 + BECKMANN_G1_ERROR) ** 2 - 1.0  # pointwise, so of the RMS too
+        deviation, error = max(deviation, bound), max(error, bound)
+    comment = [f"brdf {_version()} export of {source}",
+               f"{'exact' if exact else 'APPROXIMATE'}: {_figures(deviation, error)}", *notes]
     text = ('<?xml version="1.0" encoding="utf-8"?>\n<!--\n'
             + "".join(f"  {_xml_comment(line)}\n" for line in comment)
             + f'-->\n<scene version="{MITSUBA_VERSION}">\n    {body}\n</scene>\n')
-    return Export("mitsuba", text, str(model), exact, tuple(notes), deviation, equivalent)
+    return Export("mitsuba", text, str(source), exact, tuple(notes), deviation, equivalent,
+                  error=error, closest=closest)
+
+
+def _figures(deviation, error):
+    return (f"largest relative difference of f over directions up to 80 degrees "
+            f"{deviation:.3g}; relative RMS difference (projected solid angle) {error:.3g}")
+
+
+def _rms(model, other):
+    from .closest_material import relative_rms
+    return relative_rms(model, other)
+
+
+def _closest_note(model, format, family, reason):
+    lacking = sorted({lobe.name for lobe in model.lobes
+                      if lobe.name not in EXPORTABLE[format] and not lobe.delta})
+    why = (f"{', '.join(lacking)}: no {format} counterpart" if lacking else
+           reason.split(": ", 1)[-1])
+    return (f"{why} -> the closest {family} (least squares over direction pairs up to 80 "
+            "degrees weighted by projected solid angle), approximate")
+
+
+def _closest_mitsuba(model, reason):
+    """``lambert + ggx`` (separable masking, Fresnel none: Mitsuba's diffuse and
+    roughconductor) fitted to the smooth lobes; delta lobes map as they are."""
+    from .closest_material import fit_lambert_ggx, smooth_part
+    _, deltas = smooth_part(model)
+    fitted = fit_lambert_ggx(model, masking="separable")
+    family = "lambert + ggx (separable masking)"
+    written = _sum([lobe for lobe in fitted.lobes if np.max(_scale_of(lobe)) > 0.0] + deltas
+                   or list(fitted.lobes))
+    lead = [_closest_note(model, "mitsuba", family, reason),
+            f"closest: {written}"]
+    return _mitsuba(written, source=model, lead=lead, closest=family)
+
+
+def _scale_of(lobe):
+    return lobe["albedo"] if lobe.name == "lambert" else lobe["ks"]
 
 
 def _mi_blend(items):
@@ -444,7 +558,7 @@ def _gltf_roughness(lobe, material, notes, where):
     ay = float(lobe.get("alpha_y")) if lobe.get("alpha_y") is not None else ax
     low, high = min(ax, ay), max(ax, ay)
     if high > 1.0:
-        raise InputError(f"{lobe}: no gltf equivalent: alpha {high:g} > 1, and glTF's "
+        raise NoCounterpart(f"{lobe}: no gltf equivalent: alpha {high:g} > 1, and glTF's "
                          "roughness = sqrt(alpha) lies in [0, 1]")
     material["pbrMetallicRoughness"]["roughnessFactor"] = math.sqrt(low)
     notes.append(f"{where}: roughnessFactor = sqrt(alpha) (glTF: alpha = roughness^2), exact")
@@ -481,7 +595,7 @@ def _gltf_metal(model, lobes, names, material, notes):
     lobe = lobes[0]
     f0 = np.asarray(lobe["ks"], float) * _fresnel_f0(lobe["fresnel"])
     if np.any(f0 > 1.0):
-        raise InputError(f"{model}: no gltf equivalent: ks F0 = {np.max(f0):.6g} > 1, and "
+        raise NoCounterpart(f"{model}: no gltf equivalent: ks F0 = {np.max(f0):.6g} > 1, and "
                          "glTF's baseColor lies in [0, 1]")
     material["pbrMetallicRoughness"].update(baseColorFactor=_rgb(f0) + [1.0], metallicFactor=1.0)
     exact = lobe["fresnel"].name == "schlick" and np.all(np.asarray(lobe["ks"]) == 1.0)
@@ -500,12 +614,12 @@ def _gltf_plastic(model, lobes, names, material, notes):
     f0 = np.broadcast_to(ks * _fresnel_f0(lobe["fresnel"]), (3,))
     specular = float(ks.max())
     if specular > 1.0:
-        raise InputError(f"{model}: no gltf equivalent: ks {specular:g} > 1, and "
+        raise NoCounterpart(f"{model}: no gltf equivalent: ks {specular:g} > 1, and "
                          "KHR_materials_specular's specularFactor lies in [0, 1]")
     base = np.broadcast_to(diffuse["albedo"], (3,)) / np.maximum(1.0 - np.minimum(f0, 1.0),
                                                                  1e-12)
     if np.any(base > 1.0):
-        raise InputError(f"{model}: no gltf equivalent: albedo / (1 - ks F0) = "
+        raise NoCounterpart(f"{model}: no gltf equivalent: albedo / (1 - ks F0) = "
                          f"{base.max():.6g} > 1, and glTF's baseColor lies in [0, 1]")
     material["pbrMetallicRoughness"].update(baseColorFactor=_rgb(base) + [1.0],
                                             metallicFactor=0.0)
@@ -532,20 +646,97 @@ _GLTF_SHAPES = {"lambert": _gltf_diffuse, "ggx": _gltf_metal, "lambert + ggx": _
 def _gltf(model):
     check_families(model, "gltf")
     lobes, names = _gltf_lobes(model)
+    shape = " + ".join(lobe.name for lobe in lobes)
+    if shape not in _GLTF_SHAPES:
+        raise _unsupported(model, "gltf", ": glTF's microfacet lobe is GGX only"
+                           if "beckmann" in shape else "")
     notes = []
     material = {"name": "brdf", "pbrMetallicRoughness": {}, "extensions": {}}
-    _GLTF_SHAPES[" + ".join(lobe.name for lobe in lobes)](model, lobes, names, material, notes)
+    _GLTF_SHAPES[shape](model, lobes, names, material, notes)
+    return _gltf_document(model, material, notes)
+
+
+def _gltf_document(model, material, notes, closest=None):
+    """The glTF file of ``material`` standing for ``model``, with the measured figures."""
     if not material["extensions"]:
         del material["extensions"]
     used = sorted(material.get("extensions", {}))
-    deviation = relative_deviation(model.eval, lambda wi, wo: gltf_eval(material, wi, wo))
+
+    def theirs(wi, wo):
+        return gltf_eval(material, wi, wo)
+    deviation = relative_deviation(model.eval, theirs)
     exact = deviation <= EXACT and not any("approximate" in n for n in notes)
+    error = 0.0 if exact else _rms(model, theirs)
     material["extras"] = {"brdf": {"version": _version(), "spec": str(model), "exact": exact,
-                                   "deviation": deviation, "notes": notes}}
+                                   "deviation": deviation, "error": error, "notes": notes}}
     document = {"asset": {"version": "2.0", "generator": f"brdf {_version()}"},
                 **({"extensionsUsed": used} if used else {}), "materials": [material]}
     text = json.dumps(document, indent=2, allow_nan=False) + "\n"
-    return Export("gltf", text, str(model), exact, tuple(notes), deviation, material)
+    return Export("gltf", text, str(model), exact, tuple(notes), deviation, material,
+                  error=error, closest=closest)
+
+
+#: Direction pairs of the closest glTF material's least squares (gltf_eval is numpy).
+GLTF_CLOSEST_PAIRS = 8_000
+
+
+def _closest_gltf(model, reason):
+    """glTF's metallic-roughness parameters (with KHR_materials_specular, _ior 0 and
+    _anisotropy) fitted by bounded least squares (scipy's trust-region reflective) to the
+    model on the pairs of :func:`~brdf.io.closest_material.weighted_pairs`, from the closest
+    ``lambert + ggx`` mapped as a dielectric and as a metal; the better of the two."""
+    from scipy.optimize import least_squares
+    from .closest_material import fit_lambert_ggx, weighted_pairs
+    start = fit_lambert_ggx(model, masking="height-correlated")
+    wi, wo, weight = weighted_pairs(model, GLTF_CLOSEST_PAIRS)
+    y = np.broadcast_to(np.asarray(model.eval(wi, wo), float), (len(wi), 3))
+    root = np.sqrt(weight)[:, None]
+    diffuse, lobe = start.lobes
+    ax = float(lobe["alpha"])
+    ay = float(lobe.get("alpha_y")) if lobe.get("alpha_y") is not None else ax
+    anisotropic = ax != ay
+    rotation = 0.0 if ax >= ay else math.pi / 2
+
+    def material(x):
+        m = {"name": "brdf", "pbrMetallicRoughness": {
+            "baseColorFactor": [float(v) for v in x[0:3]] + [1.0], "metallicFactor": float(x[3]),
+            "roughnessFactor": float(x[4])}, "extensions": {
+            "KHR_materials_specular": {"specularFactor": float(x[5]),
+                                       "specularColorFactor": [float(v) for v in x[6:9]]},
+            "KHR_materials_ior": {"ior": 0.0}}}
+        if anisotropic:
+            m["extensions"]["KHR_materials_anisotropy"] = {
+                "anisotropyStrength": float(x[9]), "anisotropyRotation": rotation}
+        return m
+
+    def residuals(x):
+        return (root * (gltf_eval(material(x), wi, wo) - y)).ravel()
+
+    ks = np.broadcast_to(np.asarray(lobe["ks"], float), (3,))
+    top = max(float(ks.max()), 1e-6)
+    base = np.broadcast_to(np.asarray(diffuse["albedo"], float), (3,)) / max(1.0 - top, 1e-3)
+    rough = math.sqrt(min(ax, ay, 1.0))
+    strength = math.sqrt(max(max(ax, ay) - min(ax, ay), 0.0) / max(1.0 - min(ax, ay), 1e-6))
+    tail = [min(strength, 1.0)] if anisotropic else []
+    starts = [[*np.clip(base, 0, 1), 0.0, rough, min(top, 1.0), *(ks / top), *tail],
+              [*np.clip(ks, 0, 1), 1.0, rough, 1.0, 1.0, 1.0, 1.0, *tail]]
+    low = [0.0] * 4 + [0.01] + [0.0] * (len(starts[0]) - 5)  # roughness 0.01: alpha 1e-4
+    fits = [least_squares(residuals, np.clip(x0, low, 1.0), bounds=(low, 1.0), x_scale="jac",
+                          tr_solver="lsmr", ftol=1e-6, xtol=1e-6)
+            for x0 in starts]
+    best = min(fits, key=lambda r: r.cost)
+    family = "glTF metallic-roughness material (KHR_materials_specular, KHR_materials_ior)"
+    notes = [_closest_note(model, "gltf", family, reason),
+             "closest: " + ", ".join(f"{k} {v:.4g}" for k, v in zip(
+                 ("base r", "base g", "base b", "metallic", "roughness", "specular",
+                  "specularColor r", "specularColor g", "specularColor b",
+                  "anisotropyStrength"), best.x))]
+    return _gltf_document(model, material(best.x), notes, closest="glTF metallic-roughness")
+
+
+#: Converters of the models each format holds, and of the closest material for the rest.
+_EXACT = {"mitsuba": _mitsuba, "gltf": _gltf}
+_CLOSEST = {"mitsuba": _closest_mitsuba, "gltf": _closest_gltf}
 
 
 def gltf_eval(material, wi, wo):
