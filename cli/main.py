@@ -169,8 +169,8 @@ def build_parser():
                     "angle coverage, value range, missing and negative samples, SHA-256.",
                     "print the description as JSON")
     p.add_argument("file", metavar="FILE", help="a measured table (MERL .binary, .csv, .npz, "
-                   "RGL .bsdf, Cornell .brdf, NIST PTFE .csv, CUReT .dat, ALTA text "
-                   ".alta/.dat/.txt)")
+                   "RGL .bsdf, Cornell .brdf, NIST PTFE .csv, CUReT .dat, ALTA text or "
+                   "binary .alta/.dat/.txt)")
     _sample_option(p)
 
     p = _subcommand(sub, "convert", commands.convert, "convert a table to another format",

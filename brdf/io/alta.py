@@ -1,4 +1,4 @@
-"""ALTA's text data format (the ALTA BRDF library, github.com/belcour/alta).
+"""ALTA's data format, text and binary (the ALTA BRDF library, github.com/belcour/alta).
 
 Written from ALTA's description, ``documents/data-formats.dox``, and from what its sources do:
 the header parser ``arguments::parse_header`` (``sources/core/args.h``), the text reader
@@ -41,7 +41,11 @@ Rules (the reader enforces them; the writer follows them):
   polar angle outside [0, pi/2], a direction below the horizon, a negative radius) is an error
   naming the line.
 
-``#FORMAT binary`` files (ALTA's binary data format) are refused with one line.
+ALTA's binary data format is read too: the same header with ``#FORMAT binary``, ``#VERSION 0``,
+``#PRECISION ieee754-double``, ``#SAMPLE_COUNT n``, ``#ENDIAN little|big``, ending with
+``#BEGIN_STREAM`` (or ``#ALTA END HEADER``); then n rows of N + P doubles, optionally followed by
+``#END_STREAM``. Binary files with ``#VS`` intervals are refused: ALTA's binary writer stores
+each output's interval bounds, its reader expects a number of offsets per sample.
 
 Writing (``brdf.write(table, "x.alta")``) stores 1-channel tables as ``INV_STERADIAN``, RGB as
 ``RGB_COLOR`` (channels named X, Y, Z as ``XYZ_COLOR``), in ``ISOTROPIC_TV_TL_DPHI`` for isotropic
@@ -219,7 +223,8 @@ def _channel_names(output, count):
 _HEADER_KEY = re.compile(r"#([A-Za-z][^\s]*)\s*(.*?)\s*")
 _COMMENT_KEY_VALUE = re.compile(r"#\s+([^:\s][^:]*?)\s*:(?:\s+(.*?))?\s*")
 _END_MARKERS = ("ALTA_END_HEADER", "ALTA_HEADER_END")
-_OWN_HEADER = ("DIM", "PARAM_IN", "PARAM_OUT", "VS", "FORMAT")
+_OWN_HEADER = ("DIM", "PARAM_IN", "PARAM_OUT", "VS", "FORMAT", "VERSION", "PRECISION",
+               "SAMPLE_COUNT", "ENDIAN")
 
 
 def sniff(head):
@@ -268,7 +273,7 @@ def _header(path, lines):
                 metadata[key] = f"{metadata[key]}\n{value}" if key in metadata else value
             continue
         key, value = match.group(1), match.group(2)
-        if key.startswith("ALTA"):  # #ALTA_BEGIN_HEADER, #ALTA HEADER BEGIN, ...
+        if key.startswith("ALTA") or key in ("BEGIN_STREAM", "END_STREAM"):  # markers
             continue
         if key in _OWN_HEADER:
             if key in entries:
@@ -346,7 +351,7 @@ def _vs(path, header, p):
 
 
 def read(path, isotropic=None):
-    """Read an ALTA text data file (rules in the module docstring).
+    """Read an ALTA data file, text or binary (rules in the module docstring).
 
     Parameters
     ----------
@@ -372,29 +377,45 @@ def read(path, isotropic=None):
     if isotropic is not None and not isinstance(isotropic, bool):
         raise InputError(f"isotropic must be True, False or None, got {isotropic!r}")
     data = read_bytes(path, MAX_BYTES, "an ALTA data file")
-    _refuse_binary(path, data)
-    lines = _text.decode_lines(path, data, "an ALTA header (#DIM N P, #PARAM_IN ...) and rows "
-                                           "of numbers")
+    stream = _binary_stream_start(path, data)
+    expected = "an ALTA header (#DIM N P, #PARAM_IN ...) and rows of numbers"
+    lines = _text.decode_lines(path, data if stream is None else data[:stream], expected)
     header = _header(path, lines)
-    if "FORMAT" in header.entries:
-        value, line = header.entries["FORMAT"]
-        if value != "text":
-            raise FormatError(path, f"line {line}", f"#FORMAT {value!r}; expected text (or no "
-                                                    "#FORMAT line)")
+    value, line = header.entries.get("FORMAT", ("text", None))
+    if value not in ("text", "binary"):
+        raise FormatError(path, f"line {line}", f"#FORMAT {value!r}; expected text or binary")
+    if (value == "binary") != (stream is not None):  # a #FORMAT line _binary_stream_start missed
+        raise FormatError(path, f"line {line}", f"#FORMAT {value} after text that does not look "
+                                                "like an ALTA header; expected it among the "
+                                                "# lines at the top of the file")
     n, p = _dim(path, header)
     param = _param_in(path, header, n)
     output, out_note = _param_out(path, header, p)
     kind, vs_line = _vs(path, header, p)
-    numbers, line_numbers = _numbers(path, lines, header.end, param, p, kind)
-    wi, wo = _directions(path, numbers[:, :n], line_numbers, param)
+    if stream is None:
+        numbers, line_numbers = _numbers(path, lines, header.end, param, p, kind)
+
+        def place(k):
+            return f"line {line_numbers[k]}"
+    else:
+        if kind:
+            raise FormatError(path, f"line {vs_line}", "#VS in a binary file: ALTA's binary "
+                                                       "writer and reader disagree on where "
+                                                       "the intervals go; expected #VS 0")
+        numbers = _binary_numbers(path, data, stream, header, n + p)
+
+        def place(k):
+            return f"sample {k + 1} (byte {stream + 8 * (n + p) * k})"
+
+    wi, wo = _directions(path, numbers[:, :n], place, param)
     values = numbers[:, n:n + p]
-    sigma = _sigma(path, numbers[:, n + p:], line_numbers, n + p, p, kind)
+    sigma = _sigma(path, numbers[:, n + p:], place, p, kind)
     metadata = {"param_in": param.name, "param_out": out_note}
     if kind:
         metadata["vs"] = (f"{kind}: radius r per output read as sigma = r" if kind == 1 else
                           f"{kind}: interval [y - a, y + b] per output read as sigma = (a + b) / 2")
     if output.cosine:
-        values, sigma, grazing = _divide_cosine(path, values, sigma, wo, line_numbers)
+        values, sigma, grazing = _divide_cosine(path, values, sigma, wo, place)
         metadata["param_out"] += (": values divided by cos theta_o" + (
             f"; {grazing} samples at grazing view (theta_o = 90 deg) left missing"
             if grazing else ""))
@@ -407,17 +428,76 @@ def read(path, isotropic=None):
     return table
 
 
-def _refuse_binary(path, data):
-    """FormatError at the ``#FORMAT binary`` line of the header (looked for in the raw bytes:
-    the binary stream after the header is not text)."""
-    for number, line in enumerate(data.split(b"\n", 200)[:200], 1):
-        line = line.strip()
+#: The header lines after which a binary stream starts (data-formats.dox, and ALTA's tests).
+_STREAM_MARKERS = (b"#BEGIN_STREAM", b"#ALTA END HEADER", b"#ALTA_END_HEADER",
+                   b"#ALTA_HEADER_END")
+#: Most header lines looked at for ``#FORMAT binary``.
+_MAX_HEADER_LINES = 1000
+
+
+def _binary_stream_start(path, data):
+    """Byte offset of the binary stream when the ``#`` lines at the top of ``data`` say
+    ``#FORMAT binary`` (the stream follows the line ``#BEGIN_STREAM`` or ``#ALTA END
+    HEADER``), else None (a text file)."""
+    binary, start = False, 0
+    for number in range(1, _MAX_HEADER_LINES + 1):
+        end = data.find(b"\n", start)
+        line = (data[start:] if end < 0 else data[start:end]).strip()
         if line and not line.startswith(b"#"):
-            return
+            break
         if re.fullmatch(rb"#FORMAT\s+binary", line):
-            raise FormatError(path, f"line {number}", "#FORMAT binary: ALTA's binary data format "
-                                                      "is not read; expected the text format "
-                                                      "(ALTA's data2data converts)")
+            binary = True
+        elif binary and (line in _STREAM_MARKERS or re.fullmatch(rb"#ALTA\s+END\s+HEADER", line)):
+            return end + 1
+        if end < 0:
+            break
+        start = end + 1
+    if binary:
+        raise FormatError(path, f"line {number}", "#FORMAT binary without #BEGIN_STREAM (or "
+                                                  "#ALTA END HEADER) before the stream; expected "
+                                                  "the header to end with one")
+    return None
+
+
+def _binary_numbers(path, data, start, header, width):
+    """The samples of a binary stream, ``(SAMPLE_COUNT, width)`` float64 (ALTA's
+    load_data_from_binary: row order, one IEEE 754 double per number)."""
+    checks = (("VERSION", ("0",)), ("PRECISION", ("ieee754-double",)),
+              ("ENDIAN", ("little", "big")))
+    for key, allowed in checks:
+        value, line = header.entries.get(key, (None, None))
+        if value is None:
+            raise FormatError(path, "header", f"no #{key} line in a binary file; expected "
+                                              f"#{key} {' or '.join(allowed)}")
+        if value not in allowed:
+            raise FormatError(path, f"line {line}", f"#{key} {value!r}; expected "
+                                                    f"{' or '.join(allowed)}")
+    value, line = header.entries.get("SAMPLE_COUNT", (None, None))
+    if value is None or not re.fullmatch(r"[1-9]\d{0,15}", value):
+        where = "header" if line is None else f"line {line}"
+        raise FormatError(path, where, f"#SAMPLE_COUNT {value!r}; expected the number of "
+                                       "samples, a positive integer")
+    count = int(value)
+    need = 8 * width * count
+    stream = data[start:]
+    if len(stream) < need:
+        raise FormatError(path, f"byte {len(data)}", f"binary stream of {len(stream):,} bytes; "
+                                                     f"expected {need:,} ({count:,} samples x "
+                                                     f"{width} doubles): truncated")
+    rest = stream[need:].strip()
+    if rest not in (b"", b"#END_STREAM"):
+        raise FormatError(path, f"byte {start + need}", f"{len(stream) - need:,} bytes after "
+                                                        f"the {count:,} samples; expected "
+                                                        "#END_STREAM or the end of the file")
+    order = "<" if header.entries["ENDIAN"][0] == "little" else ">"
+    numbers = np.frombuffer(stream, dtype=f"{order}f8", count=width * count)
+    numbers = numbers.astype(np.float64).reshape(count, width)
+    bad = ~np.isfinite(numbers)
+    if bad.any():
+        k, c = np.argwhere(bad)[0]
+        raise FormatError(path, f"sample {k + 1} (byte {start + 8 * (width * k + c)})",
+                          f"number {c + 1} is {float(numbers[k, c])!r}; expected a finite number")
+    return numbers
 
 
 def _numbers(path, lines, start, param, p, kind):
@@ -465,17 +545,17 @@ def _numbers(path, lines, start, param, p, kind):
     return _text.floats(path, tokens, locate).reshape(-1, width), line_numbers
 
 
-def _directions(path, x, line_numbers, param):
+def _directions(path, x, place, param):
     """``(wi, wo)`` of the input numbers, after checking their ranges and the horizon."""
     def locate_column(c):
-        return lambda k: (f"line {line_numbers[k]}", f"{param.columns[c]}: ")
+        return lambda k: (place(k), f"{param.columns[c]}: ")
 
     x = x.copy()
     with np.errstate(over="ignore"):  # a huge number overflows to inf, refused by its range
-        return _checked_directions(path, x, line_numbers, param, locate_column)
+        return _checked_directions(path, x, place, param, locate_column)
 
 
-def _checked_directions(path, x, line_numbers, param, locate_column):
+def _checked_directions(path, x, place, param, locate_column):
     for c, kind in enumerate(param.kinds):
         if kind == "polar":
             x[:, c] = _text.check_polar(path, x[:, c], locate_column(c))
@@ -484,7 +564,7 @@ def _checked_directions(path, x, line_numbers, param, locate_column):
     if "projected" in param.kinds:
         radius = np.hypot(x[:, 1], x[:, 2])
         _text.check_range(path, radius, 0.0, 0.5 * np.pi + _text.RADIAN_ROUNDING,
-                          lambda k: (f"line {line_numbers[k]}", "theta_v = hypot of the "
+                          lambda k: (place(k), "theta_v = hypot of the "
                                                                 "projected pair: "), " rad")
         scale = np.minimum(1.0, 0.5 * np.pi / np.maximum(radius, 1e-300))
         x[:, 1:3] *= scale[:, None]
@@ -492,7 +572,7 @@ def _checked_directions(path, x, line_numbers, param, locate_column):
         for c, what in ((0, "V"), (3, "L")):
             length = np.linalg.norm(x[:, c:c + 3], axis=1)
             _text.check_range(path, length, 1.0 - DIRECTION_ROUNDING, 1.0 + DIRECTION_ROUNDING,
-                              lambda k, what=what: (f"line {line_numbers[k]}",
+                              lambda k, what=what: (place(k),
                                                     f"|{what}| (a unit vector): "))
             # vectors printed with few digits are normalised; full-precision ones are kept
             # bit for bit (a written table reads back exactly)
@@ -504,7 +584,7 @@ def _checked_directions(path, x, line_numbers, param, locate_column):
         if below.any():
             k = int(np.argmax(below))
             values = ", ".join(f"{c} = {v:.10g}" for c, v in zip(param.columns, x[k]))
-            raise FormatError(path, f"line {line_numbers[k]}", f"{values} puts the {what} below "
+            raise FormatError(path, place(k), f"{values} puts the {what} below "
                                                                f"the horizon (z = {w[k, 2]:.3g});"
                                                                " expected both directions above "
                                                                "it")
@@ -521,7 +601,7 @@ def _onto_hemisphere(w):
     return w
 
 
-def _sigma(path, intervals, line_numbers, first_column, p, kind):
+def _sigma(path, intervals, place, p, kind):
     """Sigma ``(M, P)`` of the interval numbers (None without intervals)."""
     if not kind:
         return None
@@ -529,7 +609,7 @@ def _sigma(path, intervals, line_numbers, first_column, p, kind):
     if bad.any():
         k, c = np.argwhere(bad)[0]
         what = "radius" if kind == 1 else ("a (distance below)", "b (distance above)")[c % 2]
-        raise FormatError(path, f"line {line_numbers[k]}", f"{what} of output {c // kind + 1} "
+        raise FormatError(path, place(k), f"{what} of output {c // kind + 1} "
                                                            f"is {intervals[k, c]:.10g}; expected "
                                                            "a distance >= 0")
     if kind == 1:
@@ -537,7 +617,7 @@ def _sigma(path, intervals, line_numbers, first_column, p, kind):
     return 0.5 * (intervals[:, 0::2] + intervals[:, 1::2])
 
 
-def _divide_cosine(path, values, sigma, wo, line_numbers):
+def _divide_cosine(path, values, sigma, wo, place):
     """``values / cos(theta_o)`` (and sigma), NaN at grazing view; and how many are missing."""
     cosine = wo[:, 2:3]
     grazing = cosine[:, 0] < MIN_COSINE
@@ -549,7 +629,7 @@ def _divide_cosine(path, values, sigma, wo, line_numbers):
     for what, array in (("output", values), ("interval of output", sigma)):
         if array is not None and np.isinf(array).any():
             k, c = np.argwhere(np.isinf(array))[0]
-            raise FormatError(path, f"line {line_numbers[k]}", f"{what} {c + 1} divided by "
+            raise FormatError(path, place(k), f"{what} {c + 1} divided by "
                                                                f"cos theta_o = {safe[k, 0]:.3g} "
                                                                "overflows; expected a BRDF "
                                                                "cosine below 1e308")

@@ -314,10 +314,57 @@ def test_bad_input_is_one_line_naming_file_and_line(tmp_path, case):
     assert e.value.where == where and fragment in message, message
 
 
-def test_binary_format_is_refused():
-    with pytest.raises(FormatError, match=r"line 7: #FORMAT binary: ALTA's binary data format "
-                                          "is not read"):
-        brdf.read(DATA / "brdf_small_simu_two_layers_binary.alta")
+def test_binary_file_reads_as_its_text_twin():
+    # ALTA's tests hold the same 29 samples in both formats; the text prints 17 digits
+    binary = brdf.read(DATA / "brdf_small_simu_two_layers_binary.alta")
+    text = brdf.read(TWO_LAYERS)
+    np.testing.assert_allclose(binary.values, text.values, rtol=0, atol=1e-17)
+    np.testing.assert_allclose(binary.wi, text.wi, rtol=0, atol=1e-16)
+    np.testing.assert_allclose(binary.wo, text.wo, rtol=0, atol=1e-16)
+    assert binary.format == "alta" and binary.channel_names == ("r", "g", "b")
+
+
+def binary_file(path, numbers, header="", endian="little", count=None, tail=b"\n#END_STREAM\n"):
+    numbers = np.asarray(numbers, dtype=("<" if endian == "little" else ">") + "f8")
+    text = (f"#DIM 3 1\n#PARAM_IN ISOTROPIC_TV_TL_DPHI\n#PARAM_OUT INV_STERADIAN\n"
+            f"#FORMAT binary\n#VERSION 0\n#PRECISION ieee754-double\n"
+            f"#SAMPLE_COUNT {len(numbers) if count is None else count}\n#ENDIAN {endian}\n"
+            f"{header}#BEGIN_STREAM\n")
+    Path(path).write_bytes(text.encode() + numbers.tobytes() + tail)
+    return path
+
+
+def test_binary_big_endian_and_refusals(tmp_path):
+    rows = [[0.3, 0.2, 1.0, 0.5], [0.4, 0.1, 2.0, 0.7]]
+    t = brdf.read(binary_file(tmp_path / "b.alta", rows, endian="big", tail=b""))
+    np.testing.assert_array_equal(t.values[:, 0], [0.5, 0.7])
+    np.testing.assert_allclose(t.wi[1], sph(0.1, 2.0), atol=1e-16)
+    cases = {
+        "truncated": (binary_file(tmp_path / "t.alta", rows, count=3), "byte",
+                      "expected 96 (3 samples x 4 doubles): truncated"),
+        "trailing": (binary_file(tmp_path / "r.alta", rows, tail=b"junk"), "byte",
+                     "4 bytes after the 2 samples"),
+        "nan": (binary_file(tmp_path / "n.alta", [[0.3, 0.2, 1.0, np.nan]]), "sample 1 (byte",
+                "number 4 is nan"),
+        "vs": (binary_file(tmp_path / "v.alta", rows, header="#VS 1\n"), "line", "#VS in a binary"),
+        "precision": (binary_file(tmp_path / "p.alta", rows, header="#X 1\n").read_bytes()
+                      .replace(b"ieee754-double", b"ieee754-single"), "line 6",
+                      "'ieee754-single'"),
+        "below": (binary_file(tmp_path / "h.alta", [[1.7, 0.2, 1.0, 0.5]]), "sample 1 (byte",
+                  "theta_v: 1.7 rad is outside"),
+    }
+    for name, (path, where, fragment) in cases.items():
+        if isinstance(path, bytes):
+            (tmp_path / "p.alta").write_bytes(path)
+            path = tmp_path / "p.alta"
+        with pytest.raises(FormatError) as e:
+            brdf.read(path)
+        assert e.value.where.startswith(where) and fragment in str(e.value), (name, str(e.value))
+        assert "\n" not in str(e.value)
+    no_stream = tmp_path / "s.alta"
+    no_stream.write_bytes(b"#DIM 3 1\n#PARAM_IN ISOTROPIC_TV_TL_DPHI\n#FORMAT binary\n" + bytes(64))
+    with pytest.raises(FormatError, match="line 4: #FORMAT binary without #BEGIN_STREAM"):
+        brdf.read(no_stream)
 
 
 def test_comments_and_markers_are_skipped(tmp_path):
