@@ -33,7 +33,10 @@ Rules (the reader enforces them; the writer follows them):
   2: two numbers a, b, interval [y - a, y + b] (ALTA reads them as distances below and above
   since its commit 302c046 of 2017). One value applies to every output. Intervals follow the
   P outputs in output order. They become ``Table.sigma``: sigma = r, or (a + b) / 2, i.e. the
-  interval is read as one standard deviation either side; ``metadata["vs"]`` states it.
+  interval is read as one standard deviation either side; ``metadata["vs"]`` states it. (ALTA's
+  own reader takes the interval of the first output only and gives the others its ``--dt``
+  default; rows laid out that way, with P > 1, are refused as ambiguous. It reads the files
+  written here, whose ``#VS 1 1 1`` it takes as 1, with the first output's radius.)
 - Other header entries (``#SAMPLE``, ``#URL``, ...) and ``# key: value`` comments go to
   ``Table.metadata``.
 - After the header, each non-blank line that does not start with ``#`` is one sample: exactly N +
@@ -76,7 +79,7 @@ FORMAT = "alta"
 EXTENSIONS = (".alta",)
 
 #: Slack on directions' z (and unit length) for files that print angles or vectors rounded:
-#: sin of the angle rounding of the other text readers.
+#: the angle rounding of the other text readers (its sine, to the digits that matter).
 DIRECTION_ROUNDING = _text.RADIAN_ROUNDING
 #: Smallest cos(theta_o) an ``INV_STERADIAN_COSINE_FACTOR`` value is divided by; at grazing view
 #: (within the angle rounding of 90 degrees) the BRDF is left missing rather than made huge.
@@ -202,7 +205,8 @@ OUTPUTS = {o.name: o for o in (
     # params.h: "Output values in inverse steradian (sr-1). This is the standard definition"
     Output("INV_STERADIAN", None, None),
     # params.h: "in inverse steradian (sr-1) weighted by the cosine factor of the output
-    # direction": f cos(theta_o), theta_o the view direction V's
+    # direction": f cos(theta_o), theta_o the view direction V's (ALTA's diffuse plugin
+    # bootstraps its albedo dividing by both cosines; the declaration is followed here)
     Output("INV_STERADIAN_COSINE_FACTOR", None, None, cosine=True),
     Output("RGB_COLOR", 3, ("r", "g", "b")),
     Output("XYZ_COLOR", 3, ("X", "Y", "Z")),
