@@ -5,6 +5,8 @@ Run: ``python benchmarks/bench_io.py [--rows 100000] [--repeats 3]``
 
 - ``csv``: ``brdf.io.gonio_csv.read`` of a 100k-row RGB file with sigma columns (validation,
   line-exact errors, the table) against a bare ``np.loadtxt`` of the same file;
+- ``alta``: ``brdf.io.alta`` write and read of the same table as an ALTA text file
+  (``ISOTROPIC_TV_TL_DPHI`` with ``#VS`` radii) against ``np.savetxt`` / ``np.loadtxt``;
 - ``npz``: write + read of a MERL-size plain table (1.458 M samples x 3) against ``np.save`` +
   ``np.load`` of the same arrays;
 - ``real``: reading each real data set of ``../shared/measured`` (when present) with its reader,
@@ -24,7 +26,7 @@ import numpy as np
 
 import brdf
 from brdf.gonioreflectometer import geometry_directions
-from brdf.io import gonio_csv, npz
+from brdf.io import alta, gonio_csv, npz
 from brdf.table import Table
 from timing import best_time
 
@@ -45,6 +47,19 @@ def bench_csv(folder, rows, repeats):
     base = best_time(lambda: np.loadtxt(path, delimiter=",", comments="#", skiprows=8),
                      repeats)[0]
     show(f"csv read {rows:,} rows", ours, base, "np.loadtxt")
+
+
+def bench_alta(folder, rows, repeats):
+    model = brdf.parse(SPEC)
+    t = brdf.measure(model, f"random:{rows}", "relative:0.02", seed=1)
+    path = folder / "big.alta"
+    ours = best_time(lambda: alta.write(t, path), repeats)[0]
+    numbers = np.loadtxt(path, comments="#")
+    base = best_time(lambda: np.savetxt(folder / "plain.txt", numbers, fmt="%r"), repeats)[0]
+    show(f"alta write {rows:,} rows", ours, base, "np.savetxt")
+    ours = best_time(lambda: alta.read(path), repeats)[0]
+    base = best_time(lambda: np.loadtxt(path, comments="#"), repeats)[0]
+    show(f"alta read {rows:,} rows", ours, base, "np.loadtxt")
 
 
 def bench_npz(folder, repeats):
@@ -101,6 +116,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         bench_csv(folder, args.rows, args.repeats)
+        bench_alta(folder, args.rows, args.repeats)
         bench_npz(folder, args.repeats)
     bench_real(args.repeats)
     bench_eval(args.repeats)

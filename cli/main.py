@@ -169,13 +169,15 @@ def build_parser():
                     "angle coverage, value range, missing and negative samples, SHA-256.",
                     "print the description as JSON")
     p.add_argument("file", metavar="FILE", help="a measured table (MERL .binary, .csv, .npz, "
-                   "RGL .bsdf, Cornell .brdf, NIST PTFE .csv, CUReT .dat)")
+                   "RGL .bsdf, Cornell .brdf, NIST PTFE .csv, CUReT .dat, ALTA text or "
+                   "binary .alta/.dat/.txt)")
     _sample_option(p)
 
     p = _subcommand(sub, "convert", commands.convert, "convert a table to another format",
                     "Read a measured table and write it in the format the output's extension "
-                    "names (.binary MERL, .csv gonioreflectometer CSV, .npz native). Grid "
-                    "formats are filled by interpolating the input.", "print a JSON summary")
+                    "names (.binary MERL, .csv gonioreflectometer CSV, .npz native, .alta ALTA "
+                    "text). Grid formats are filled by interpolating the input.",
+                    "print a JSON summary")
     p.add_argument("input", metavar="IN", help="the table to read")
     _sample_option(p)
     p.add_argument("output", metavar="OUT", help="the file to write")

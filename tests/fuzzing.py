@@ -32,7 +32,7 @@ CPU_BUDGET, TIME_BUDGET = 30.0, 120.0
 MEMORY_BUDGET = 3 << 30
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3)"
 RENDER = ["--spp", "1", "--size", "16x16"]
-TEXT_FORMATS = {"csv", "json", "toml", "ies", "report"}
+TEXT_FORMATS = {"csv", "alta", "json", "toml", "ies", "report"}
 
 
 # --- seed files ----------------------------------------------------------------------------
@@ -76,6 +76,9 @@ def make_seeds(folder):
     npz = folder / "seed.npz"
     brdf.write(brdf.measure(model, "random:60", "relative:0.01", seed=2), npz)
     seeds["npz"] = npz
+    alta = folder / "seed.alta"
+    brdf.write(brdf.measure(model, "random:60", "relative:0.01", seed=3), alta)
+    seeds["alta"] = alta
     bsdf = folder / "seed.bsdf"
     bsdf.write_bytes(tensor_file(small_material())[0])
     seeds["bsdf"] = bsdf
@@ -117,7 +120,7 @@ def commands(kind, path, out):
     """The ``brdf-fit`` argument lists that read ``path`` (a file of ``kind``); ``out`` is a
     folder for their outputs."""
     p = str(path)
-    if kind in ("binary", "csv", "npz", "bsdf"):
+    if kind in ("binary", "csv", "alta", "npz", "bsdf"):
         return [["info", p], ["check", p], ["convert", p, str(out / "out.npz"), "--force"],
                 ["render", p, "-o", str(out / "out.exr"), "--force", *RENDER]]
     if kind == "report":

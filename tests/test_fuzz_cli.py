@@ -48,7 +48,7 @@ def _fuzz(seeds, kind, count, tmp_path):
     assert not broken, f"{len(broken)} of {count} runs broke the promise:\n" + "\n".join(broken)
 
 
-KINDS = ["binary", "csv", "npz", "bsdf", "json", "toml", "report", "ies"]
+KINDS = ["binary", "csv", "alta", "npz", "bsdf", "json", "toml", "report", "ies"]
 
 
 @pytest.mark.parametrize("kind", KINDS)

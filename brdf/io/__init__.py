@@ -11,7 +11,7 @@ recognises.
 
 >>> import brdf
 >>> sorted(brdf.io.formats())[:3]
-['cornell', 'curet', 'gonio-csv']
+['alta', 'cornell', 'curet']
 """
 
 import hashlib
@@ -27,7 +27,7 @@ __all__ = ["read", "write", "formats", "format_of", "Source", "source_of", "read
            "atomic_output", "as_table"]
 
 #: Format modules, in the order content sniffing tries them.
-_MODULES = ("merl", "nist_ptfe", "cornell", "curet", "gonio_csv", "npz", "rgl_bsdf")
+_MODULES = ("merl", "nist_ptfe", "cornell", "curet", "alta", "gonio_csv", "npz", "rgl_bsdf")
 
 #: Bytes of the file head passed to each format's ``sniff``.
 SNIFF_BYTES = 4096
@@ -140,10 +140,11 @@ def _path_argument(path, what):
     return text
 
 
-def write(table, path, format=None, force=False):
+def write(table, path, format=None, force=False, **options):
     """Write ``table`` to ``path`` in the format its extension names (or ``format``).
 
     The file appears complete or not at all; an existing file is kept unless ``force``.
+    ``options`` go to the format's writer (e.g. ``param=`` for ALTA files).
     """
     from ..models.base import Model
     from ..table import Table
@@ -161,9 +162,23 @@ def write(table, path, format=None, force=False):
         hint = ("; write saves measured tables: measure the model first (brdf.measure) or save "
                 "its spec (str(model)) or model.to_dict()" if hasattr(table, "to_dict") else "")
         raise InputError(f"write: table must be a brdf.Table, got {type(table).__name__}{hint}")
+    _check_options(module, module.write, options, "write")
     with atomic_output(path, force) as tmp:
-        module.write(table, tmp)
+        module.write(table, tmp, **options)
     return Path(path)
+
+
+def _check_options(module, function, options, what):
+    """InputError naming the first of ``options`` that ``function`` does not take."""
+    import inspect
+    taken = [name for name, p in inspect.signature(function).parameters.items()
+             if p.kind is p.KEYWORD_ONLY or (p.kind is p.POSITIONAL_OR_KEYWORD
+                                             and p.default is not p.empty)]
+    unknown = [name for name in options if name not in taken]
+    if unknown:
+        offered = f"options: {', '.join(taken)}" if taken else "no options"
+        raise InputError(f"{what}: format {module.FORMAT} takes no option {unknown[0]!r} "
+                         f"({offered})")
 
 
 def format_of_output(path):
