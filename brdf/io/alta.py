@@ -58,7 +58,6 @@ float64. Samples missing in every channel and samples below the horizon are left
 missing in some channels only, spectral tables and other channel counts are refused.
 """
 
-import json
 import re
 from dataclasses import dataclass
 
@@ -70,7 +69,7 @@ from ..geometry import (cartesian_to_spherical, directions_from_half_diff,
 from ..table import Table
 from . import _text, read_bytes, source_of
 from .files import MAX_BYTES
-from .gonio_csv import above_horizon, provenance_metadata
+from .gonio_csv import above_horizon, metadata_comment_lines
 
 __all__ = ["read", "write", "sniff", "FORMAT", "EXTENSIONS", "PARAMS", "OUTPUTS"]
 
@@ -721,19 +720,4 @@ def _write_output(table):
 
 def _metadata_lines(table):
     """``# key: value`` comment lines (ALTA skips them; :func:`read` takes them back)."""
-    lines = []
-    for key, value in provenance_metadata(table).items():
-        if key in OWN_KEYS:
-            continue
-        match = _COMMENT_KEY_VALUE.fullmatch(f"# {key}: x")
-        if not match or match.group(1) != key:
-            raise InputError(f"{table.name}: metadata key {key!r} cannot be written as a "
-                             "'# key: value' line (keys have no colon, newline or surrounding "
-                             "spaces)")
-        if not isinstance(value, str):
-            try:
-                value = json.dumps(value, ensure_ascii=False)
-            except TypeError as e:
-                raise InputError(f"{table.name}: metadata[{key!r}] is not JSON ({e})") from None
-        lines.extend(f"# {key}: {part}" for part in value.split("\n"))
-    return lines
+    return metadata_comment_lines(table, _COMMENT_KEY_VALUE, skip=OWN_KEYS)

@@ -58,7 +58,7 @@ from .files import MAX_BYTES
 from . import _text
 from ._text import decode_lines
 
-__all__ = ["read", "write", "sniff", "provenance_metadata", "above_horizon",
+__all__ = ["read", "write", "sniff", "provenance_metadata", "metadata_comment_lines", "above_horizon",
            "FORMAT", "EXTENSIONS", "COLUMNS"]
 
 FORMAT = "gonio-csv"
@@ -422,11 +422,19 @@ def _rows_of(table):
 
 def _metadata_lines(table):
     """``# key: value`` lines: the isotropy flag, then the metadata with its provenance."""
-    lines = [f"# {ISOTROPIC_KEY}: {'true' if table.isotropic else 'false'}"]
+    return [f"# {ISOTROPIC_KEY}: {'true' if table.isotropic else 'false'}",
+            *metadata_comment_lines(table, _KEY_VALUE, skip=(ISOTROPIC_KEY,))]
+
+
+def metadata_comment_lines(table, pattern, skip=()):
+    """``# key: value`` lines of :func:`provenance_metadata` but the keys in ``skip``, values
+    that are not text as JSON; ``pattern`` is the reader's regular expression of such a line,
+    which every key must match back (its group 1)."""
+    lines = []
     for key, value in provenance_metadata(table).items():
-        if key == ISOTROPIC_KEY:
+        if key in skip:
             continue
-        match = _KEY_VALUE.fullmatch(f"# {key}: x")
+        match = pattern.fullmatch(f"# {key}: x")
         if not match or match.group(1) != key:
             raise InputError(f"{table.name}: metadata key {key!r} cannot be written as a "
                              "'# key: value' line (keys have no colon, newline or surrounding "
