@@ -1,0 +1,572 @@
+"""Export of a model to MaterialX: an OpenPBR Surface (``open_pbr_surface``) document.
+
+``to_materialx(model) -> Export`` writes a MaterialX 1.39 document holding one
+``<open_pbr_surface>`` shader (the node of MaterialX's standard library, OpenPBR Surface 1.1)
+and a ``<surfacematerial>`` that references it; ``brdf.export(model, "materialx", path)`` is
+the usual way in. The mapping and the measured deviation (the largest relative difference of
+f, :func:`brdf.io.export.relative_deviation`, against :func:`openpbr_eval`) are stated in an
+XML comment and in the shader's ``doc`` attribute.
+
+The mapping (OpenPBR Surface specification 1.1, academysoftwarefoundation.github.io/OpenPBR;
+"spec" below):
+
+* roughness: ``specular_roughness`` r and ``specular_roughness_anisotropy`` a with
+  alpha_t = r^2 sqrt(2 / (1 + (1 - a)^2)), alpha_b = (1 - a) alpha_t (spec, "Microfacet model",
+  eq. openpbr-anisotropy-formula), inverted exactly: r = ((alpha_t^2 + alpha_b^2) / 2)^(1/4).
+  OpenPBR stretches along the tangent; a lobe rougher along our y has ``geometry_tangent``
+  connected to a ``<bitangent>`` node (the highlight is the same for either tangent sign, spec).
+  r is capped at 1 (the spec's range): alpha above 1 is approximate.
+* ``lambert``: base_weight 1, base_color = albedo, base_diffuse_roughness 0, specular_weight 0
+  (no specular layer: exact).
+* ``oren-nayar``: the same with base_diffuse_roughness: OpenPBR's diffuse is the energy-
+  preserving Oren-Nayar (EON) of Portsmouth et al. 2025 (Fujii's form plus a multiple-
+  scattering term), ours the qualitative model of Oren & Nayar 1994 eq. 30. They differ on the
+  backscattering side and by EON's compensation term, so base_diffuse_roughness and base_color
+  are the pair (roughness on a grid of 41) with the smallest relative deviation (approximate).
+* ``ggx`` alone (a metal): base_metalness 1 with OpenPBR's F82-tint Fresnel (spec, "Metal",
+  Kutz et al. 2021): specular_weight = max ks, base_color = ks F(1) / specular_weight,
+  specular_color = the tint that makes F82(1/7) = ks F(1/7). Exact for ``schlick`` with a grey
+  ks (F82 with tint 1 is Schlick's), approximate for the other Fresnel terms. A ``ggx`` lobe with
+  a ``dielectric`` Fresnel is a dielectric instead: base_weight 0, specular_ior = eta,
+  specular_color = ks (exact).
+* ``lambert + ggx`` (a plastic): base_metalness 0; the specular lobe is the dielectric's
+  reflection specular_color F(mu, specular_ior) D G2 / (4 cos cos): ``dielectric`` -> its eta
+  (exact), ``none`` -> an ior with F0 = 0.9999 (F within 1e-4 of 1 at every angle),
+  ``schlick``/``conductor`` -> the ior with the same F0 (approximate). The diffuse layer is
+  weighted by 1 - E_spec(wo), E_spec the directional albedo of the specular lobe (spec,
+  "Glossy-diffuse" with the albedo scaling of "Layering"), which ``lambert + ggx`` does not
+  have: base_color = albedo c, with c per channel the minimax compensation of that weight over
+  the deviation grid, clamped to [0, 1] (approximate).
+* ``beckmann`` -> GGX with the same alpha (OpenPBR is GGX only: approximate); separable Smith
+  masking -> OpenPBR's height-correlated Smith G2 (Heitz 2014, eq. 99: approximate).
+* Other families (phong, ward, lafortune, ...), mirrors and sums of more than one diffuse and
+  one specular lobe have no counterpart here and are refused.
+
+OpenPBR leaves multiple scattering between microfacets to the renderer ("should ideally account
+for this"); :func:`openpbr_eval` evaluates the single-scattering lobes the spec writes, like
+our models, so renderers that add an energy-compensation lobe (MaterialX's GLSL) are brighter
+for rough lobes than the deviation says.
+"""
+
+import math
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from ..errors import InputError
+from .export import EXACT, Export, relative_deviation
+
+__all__ = ["to_materialx", "openpbr_eval", "check_materialx", "EXPORTABLE", "NODE",
+           "MATERIALX_VERSION"]
+
+#: The standard-library node written (nodedef ``ND_open_pbr_surface_surfaceshader``).
+NODE = "open_pbr_surface"
+#: The MaterialX document version written.
+MATERIALX_VERSION = "1.39"
+SHADER_NAME, MATERIAL_NAME, BITANGENT_NAME = "brdf_shader", "brdf_material", "brdf_bitangent"
+DIFFUSE, SPECULAR = ("lambert", "oren-nayar"), ("ggx", "beckmann")
+#: Model shapes that export (a sum's lobes in any order).
+EXPORTABLE = (*DIFFUSE, *SPECULAR, *(f"{d} + {s}" for d in DIFFUSE for s in SPECULAR))
+#: F0 that stands for Fresnel ``none`` (F = 1) in a dielectric: F is within 1e-4 of 1 at every
+#: angle (MaterialX's reference graph clamps the modulated F0 at 0.99999).
+F0_NONE = 0.9999
+#: The F82-tint model's reference cosine (spec, "Metal": mu-bar = 1/7, about 82 degrees).
+MU_BAR = 1.0 / 7.0
+#: Inputs of open_pbr_surface this module writes or reads, with the nodedef's defaults.
+DEFAULTS = {"base_weight": 1.0, "base_color": (0.8, 0.8, 0.8), "base_diffuse_roughness": 0.0,
+            "base_metalness": 0.0, "specular_weight": 1.0, "specular_color": (1.0, 1.0, 1.0),
+            "specular_roughness": 0.3, "specular_ior": 1.5, "specular_roughness_anisotropy": 0.0}
+#: Inputs whose non-default values open_pbr_eval does not evaluate (their defaults switch them
+#: off: no coat, fuzz, transmission, subsurface, thin film or emission).
+OFF = ("coat_weight", "fuzz_weight", "transmission_weight", "subsurface_weight",
+       "thin_film_weight", "emission_luminance")
+TYPES = {"base_color": "color3", "specular_color": "color3"}
+#: Quadrature of the specular lobe's directional albedo: midpoints of an N x N grid over the
+#: square that samples D(h) cos(theta_h) (see specular_albedo).
+ALBEDO_GRID = 192
+
+
+# --- the evaluator --------------------------------------------------------------------------------
+
+def openpbr_eval(params, wi, wo):
+    """The BRDF (no cosine) an ``open_pbr_surface`` with ``params`` describes, shaped (..., 3).
+
+    OpenPBR Surface 1.1 with coat, fuzz, transmission, subsurface, thin film and emission off
+    (the base substrate): mix(glossy-diffuse, metal, base_metalness), where glossy-diffuse is
+    f_spec + (1 - E_spec(wo)) f_diffuse (spec, "Glossy-diffuse", the non-reciprocal albedo
+    scaling; wo is the viewer), f_spec the GGX dielectric reflection tinted by specular_color
+    with the ior modulated by specular_weight (spec, eq. modulated_ior), f_diffuse the EON
+    diffuse (Portsmouth et al. 2025) and the metal GGX with the F82-tint Fresnel. Masking is
+    Smith's height-correlated G2 (Heitz 2014, eq. 99); single scattering only.
+
+    Parameters
+    ----------
+    params : dict
+        Input names of ``open_pbr_surface`` to values (floats, or 3 floats for colors); missing
+        inputs take the nodedef's defaults. ``"geometry_tangent": "bitangent"`` turns the
+        anisotropy's tangent to our y axis (the document's ``<bitangent>`` connection).
+    wi, wo : array_like, shape (..., 3)
+        Directions towards the light and the viewer in the local frame.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+    """
+    p = {**DEFAULTS, **params}
+    on = [name for name in OFF if float(p.get(name, 0.0)) != 0.0]
+    if on:
+        raise InputError(f"openpbr_eval evaluates the base and specular layers only; "
+                         f"{', '.join(on)} must be 0")
+    wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
+    if p.get("geometry_tangent") == "bitangent":  # tangent along y: rotate the frame by 90 deg
+        wi, wo = _quarter_turn(wi), _quarter_turn(wo)
+    at, ab = openpbr_alphas(p["specular_roughness"], p["specular_roughness_anisotropy"])
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    mu = np.clip(np.sum(wo * h, axis=-1), 0.0, 1.0)
+    ci, co = wi[..., 2], wo[..., 2]
+    above = (ci > 0.0) & (co > 0.0)
+    dg = np.where(above, _ggx_d(h, at, ab) * _ggx_g2(wi, wo, at, ab)
+                  / (4.0 * np.where(above, ci * co, 1.0)), 0.0)[..., None]
+    metalness = float(p["base_metalness"])
+    out = 0.0
+    if metalness > 0.0:
+        f0 = float(p["base_weight"]) * _rgb(p["base_color"])
+        fresnel = float(p["specular_weight"]) * f82_tint(f0, _rgb(p["specular_color"]),
+                                                         mu[..., None])
+        out = out + metalness * fresnel * dg
+    if metalness < 1.0:
+        eta = modulated_ior(p["specular_ior"], p["specular_weight"])
+        tint = _rgb(p["specular_color"])
+        spec = tint * dielectric_fresnel(mu, eta)[..., None] * dg
+        albedo = tint * specular_albedo(wo, at, ab, eta)[..., None]
+        diffuse = eon_eval(p["base_color"], p["base_diffuse_roughness"], wi, wo) * float(
+            p["base_weight"])
+        out = out + (1.0 - metalness) * (spec + (1.0 - albedo) * diffuse)
+    return np.where(above[..., None], out, 0.0)
+
+
+def _rgb(value):
+    return np.broadcast_to(np.asarray(value, float), (3,)).copy()
+
+
+def _quarter_turn(v):
+    """Coordinates in the frame whose tangent is our y (x' = y, y' = -x)."""
+    return np.stack([v[..., 1], -v[..., 0], v[..., 2]], axis=-1)
+
+
+def openpbr_alphas(roughness, anisotropy):
+    """(alpha_t, alpha_b) of OpenPBR's roughness and anisotropy (spec 1.1, "Microfacet model",
+    eq. openpbr-anisotropy-formula), floored at 1e-4 as our models are."""
+    r, a = float(roughness), float(anisotropy)
+    at = r * r * math.sqrt(2.0 / (1.0 + (1.0 - a) ** 2))
+    return max(at, 1e-4), max((1.0 - a) * at, 1e-4)
+
+
+def openpbr_roughness(alpha_t, alpha_b):
+    """(roughness, anisotropy) with :func:`openpbr_alphas` = (alpha_t, alpha_b), alpha_t >=
+    alpha_b: alpha_t^2 + alpha_b^2 = 2 r^4 and 1 - a = alpha_b / alpha_t (the same equation)."""
+    r = ((alpha_t ** 2 + alpha_b ** 2) / 2.0) ** 0.25
+    return r, 1.0 - alpha_b / alpha_t
+
+
+def _ggx_d(h, at, ab):
+    # anisotropic GGX normal distribution (Heitz 2014, eq. 85)
+    return 1.0 / (math.pi * at * ab * ((h[..., 0] / at) ** 2 + (h[..., 1] / ab) ** 2
+                                       + h[..., 2] ** 2) ** 2)
+
+
+def _ggx_lambda(v, at, ab):
+    # Smith Lambda of anisotropic GGX (Heitz 2014, eqs. 72 and 86)
+    z2 = np.maximum(v[..., 2] ** 2, 1e-300)
+    a2 = ((at * v[..., 0]) ** 2 + (ab * v[..., 1]) ** 2) / z2
+    return 0.5 * (np.sqrt(1.0 + a2) - 1.0)
+
+
+def _ggx_g2(wi, wo, at, ab):
+    # height-correlated masking-shadowing (Heitz 2014, eq. 99)
+    return 1.0 / (1.0 + _ggx_lambda(wi, at, ab) + _ggx_lambda(wo, at, ab))
+
+
+def modulated_ior(ior, weight):
+    """The dielectric's ior ratio after specular_weight (spec 1.1, "Dielectric base", eqs.
+    unmodulated_fresnel and modulated_ior, with the weight clamped to [0, 1 / F_s]); inf when
+    the modulated F0 is 1."""
+    eta = float(ior)
+    fs = ((1.0 - eta) / (1.0 + eta)) ** 2
+    xi = min(max(float(weight), 0.0), 1.0 / fs if fs > 0.0 else math.inf)
+    eps = math.copysign(math.sqrt(xi * fs), eta - 1.0)
+    return math.inf if eps >= 1.0 else (1.0 + eps) / (1.0 - eps)
+
+
+def ior_of_f0(f0):
+    """The ior ratio above 1 whose dielectric reflectance at normal incidence is ``f0``."""
+    s = math.sqrt(min(max(float(f0), 0.0), F0_NONE))
+    return (1.0 + s) / (1.0 - s)
+
+
+def dielectric_fresnel(cos, eta):
+    """Unpolarised Fresnel reflectance of a dielectric interface with ior ratio ``eta`` (Walter
+    et al. 2007, eq. 22; total internal reflection gives 1)."""
+    c = np.abs(np.asarray(cos, float))
+    if math.isinf(eta):
+        return np.ones_like(c)
+    g2 = eta * eta - 1.0 + c * c
+    g = np.sqrt(np.maximum(g2, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = (g - c) / (g + c)
+        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
+        f = 0.5 * a * a * (1.0 + b * b)
+    return np.where(g2 > 0.0, np.nan_to_num(f, nan=1.0), 1.0)
+
+
+def f82_tint(f0, tint, mu):
+    """The F82-tint metal Fresnel with specular_weight 1 (spec 1.1, "Metal"; Kutz et al. 2021,
+    after Hoffman 2019): Schlick's curve minus a mu (1 - mu)^6 term that brings it to tint x
+    Schlick at mu-bar = 1/7."""
+    def schlick(m):
+        return f0 + (1.0 - f0) * (1.0 - m) ** 5
+    mu = np.asarray(mu, float)
+    b = MU_BAR * (1.0 - MU_BAR) ** 6
+    return schlick(mu) - mu * (1.0 - mu) ** 6 / b * (schlick(MU_BAR) - tint * schlick(MU_BAR))
+
+
+def specular_albedo(wo, at, ab, eta):
+    """Directional albedo at ``wo`` of the untinted dielectric reflection lobe F D G2 / (4 cos
+    cos), by midpoint quadrature over the square that samples D(h) cos(theta_h) (slope-space
+    stretching of the isotropic GGX, Heitz 2014, sec. 5.3): E = mean of F G2 (wo.h) /
+    (cos_o cos_h). Computed once per distinct wo."""
+    if eta == 1.0:
+        return np.zeros(wo.shape[:-1])
+    n = ALBEDO_GRID
+    u = (np.arange(n) + 0.5) / n
+    u1, u2 = np.meshgrid(u, u, indexing="ij")
+    radius = np.sqrt(u1 / (1.0 - u1)).ravel()  # slope radius of the unit GGX: P(r) = r^2/(1+r^2)
+    phi = 2.0 * math.pi * u2.ravel()
+    m = np.stack([-at * radius * np.cos(phi), -ab * radius * np.sin(phi),
+                  np.ones_like(radius)], axis=-1)
+    m /= np.linalg.norm(m, axis=-1, keepdims=True)
+    flat = wo.reshape(-1, 3)
+    if at == ab:  # isotropic: E depends on cos(theta_o) only
+        z = np.clip(flat[:, 2], -1.0, 1.0)
+        flat = np.stack([np.sqrt(1.0 - z * z), np.zeros_like(z), z], axis=-1)
+    unique, inverse = np.unique(flat, axis=0, return_inverse=True)
+    albedo = np.zeros(len(unique))
+    for k, v in enumerate(unique):
+        if v[2] <= 0.0:
+            continue
+        vh = m @ v
+        wi = 2.0 * vh[:, None] * m - v
+        ok = (vh > 0.0) & (wi[:, 2] > 0.0)
+        g2 = _ggx_g2(wi[ok], v, at, ab)
+        albedo[k] = np.sum(dielectric_fresnel(vh[ok], eta) * g2 * vh[ok]
+                           / (v[2] * m[ok, 2])) / len(m)
+    return albedo[inverse.ravel()].reshape(wo.shape[:-1])
+
+
+#: Fujii's constant in A = 1 / (1 + FUJII sigma) (spec 1.1, footnote to eq. FON_brdf).
+FUJII = 0.5 - 2.0 / (3.0 * math.pi)
+
+
+def fon_albedo(mu, sigma):
+    """Directional albedo of Fujii's Oren-Nayar with rho = 1 at cosine ``mu``, in closed form
+    (Portsmouth et al. 2025, "EON: A practical energy-preserving rough diffuse BRDF", JCGT
+    14(1), E_FON): A + B G(theta) / pi."""
+    a = 1.0 / (1.0 + FUJII * sigma)
+    mu = np.clip(np.asarray(mu, float), 1e-12, 1.0)
+    si = np.sqrt(1.0 - mu * mu)
+    g = si * (np.arccos(mu) - si * mu) + 2.0 / 3.0 * ((si / mu) * (1.0 - si ** 3) - si)
+    return a + sigma * a * g / math.pi
+
+
+def fon_average_albedo(sigma):
+    """Cosine-weighted average of :func:`fon_albedo`, 2 int E mu dmu, in closed form (Portsmouth
+    et al. 2025): A (1 + (2/3 - 28 / (15 pi)) sigma)."""
+    return (1.0 + (2.0 / 3.0 - 28.0 / (15.0 * math.pi)) * sigma) / (1.0 + FUJII * sigma)
+
+
+def eon_eval(rho, sigma, wi, wo):
+    """The energy-preserving Oren-Nayar BRDF (EON) with base_weight 1, shaped (..., 3):
+    Fujii's form rho / pi (A + B s / t) plus the multiple-scattering term rho_ms / pi
+    (1 - E(wi)) (1 - E(wo)) / (1 - <E>), rho_ms = rho^2 <E> / (1 - rho (1 - <E>)) (Portsmouth
+    et al. 2025, eqs. 1-3 and 8; spec 1.1 eqs. FON_brdf and EON_comp, whose printed rho_ms puts
+    this 1 / (1 - <E>) inside). sigma = 0 is Lambert's rho / pi exactly."""
+    rho, sigma = _rgb(rho), float(sigma)
+    ci, co = wi[..., 2], wo[..., 2]
+    if sigma == 0.0:
+        return np.broadcast_to(rho / math.pi, (*ci.shape, 3)).copy()
+    a = 1.0 / (1.0 + FUJII * sigma)
+    s = np.sum(wi * wo, axis=-1) - ci * co
+    t = np.where(s > 0.0, np.maximum(ci, co), 1.0)
+    fon = (a + sigma * a * s / t)[..., None] * rho / math.pi
+    ei, eo, e_avg = fon_albedo(ci, sigma), fon_albedo(co, sigma), fon_average_albedo(sigma)
+    rho_ms = rho * rho * e_avg / (1.0 - rho * (1.0 - e_avg))
+    ms = ((1.0 - ei) * (1.0 - eo) / (1.0 - e_avg))[..., None] * rho_ms / math.pi
+    return fon + ms
+
+
+# --- the mapping ----------------------------------------------------------------------------------
+
+def _lobes(model):
+    """(diffuse lobe or None, specular lobe or None, their flat names)."""
+    from ..models.base import Sum
+    names = model.lobe_names() if isinstance(model, Sum) else [model.name]
+    diffuse = [(n, lobe) for n, lobe in zip(names, model.lobes) if lobe.name in DIFFUSE]
+    specular = [(n, lobe) for n, lobe in zip(names, model.lobes) if lobe.name in SPECULAR]
+    return (diffuse[0] if diffuse else (None, None)), (specular[0] if specular else (None, None))
+
+
+def check_materialx(model):
+    """Raise the one-line error :func:`to_materialx` gives for a model without an OpenPBR
+    counterpart, converting nothing (``brdf-fit fit --export`` asks before it fits)."""
+    (dn, diffuse), (sn, specular) = _lobes(model)
+    count = (diffuse is not None) + (specular is not None)
+    if count != len(model.lobes):
+        others = sorted({lobe.name for lobe in model.lobes} - set(DIFFUSE) - set(SPECULAR))
+        why = (f": {', '.join(others)} not in OpenPBR's base and specular layers" if others else
+               ": OpenPBR has one diffuse and one specular lobe (a second specular lobe would "
+               "be its coat, not written yet)")
+        raise InputError(f"{model}: no materialx equivalent{why}; materialx export takes "
+                         f"{', '.join(EXPORTABLE)}")
+
+
+def _fresnel_at(fresnel, cos):
+    """Our Fresnel term at one cosine, per channel."""
+    from ..models.fresnel import conductor_reflectance, dielectric_reflectance, schlick
+    if fresnel.name == "none":
+        return np.ones(1)
+    if fresnel.name == "schlick":
+        return np.array([schlick(f, cos) for f in np.atleast_1d(fresnel["f0"])])
+    if fresnel.name == "dielectric":
+        return np.array([dielectric_reflectance(cos, e) for e in np.atleast_1d(fresnel["eta"])])
+    eta, k = np.broadcast_arrays(np.atleast_1d(fresnel["eta"]), np.atleast_1d(fresnel["k"]))
+    return np.array([conductor_reflectance(cos, e, kk) for e, kk in zip(eta, k)])
+
+
+def _grey(value):
+    arr = np.atleast_1d(np.asarray(value, float))
+    return bool(np.all(arr == arr[0]))
+
+
+def _roughness(lobe, name, params, notes):
+    ax = float(lobe["alpha"])
+    ay = float(lobe.get("alpha_y")) if lobe.get("alpha_y") is not None else ax
+    at, ab = max(ax, ay), min(ax, ay)
+    r, a = openpbr_roughness(at, ab)
+    capped = r > 1.0
+    params["specular_roughness"] = min(r, 1.0)
+    if a > 0.0:
+        params["specular_roughness_anisotropy"] = a
+    if ay > ax:
+        params["geometry_tangent"] = "bitangent"
+    notes.append(f"{name}: specular_roughness = ((alpha_t^2 + alpha_b^2) / 2)^(1/4)"
+                 + (", specular_roughness_anisotropy = 1 - alpha_b / alpha_t" if a > 0 else "")
+                 + (", geometry_tangent = the bitangent (rougher along y)" if ay > ax else "")
+                 + (f" (OpenPBR: alpha_t = r^2 sqrt(2 / (1 + (1 - a)^2)), alpha_b = (1 - a) "
+                    f"alpha_t), " + ("approximate: roughness capped at 1" if capped else "exact")))
+    if lobe.name == "beckmann":
+        notes.append(f"{name}: Beckmann normals -> GGX with the same alpha (OpenPBR is GGX "
+                     "only), approximate")
+    if lobe["masking"] == "separable":
+        notes.append(f"{name}: separable Smith masking -> OpenPBR's height-correlated G2, "
+                     "approximate")
+
+
+def _metal(lobe, name, params, notes):
+    """base_metalness 1 with the F82-tint Fresnel fitted at mu = 1 and mu = 1/7."""
+    ks = np.atleast_1d(np.asarray(lobe["ks"], float))
+    fresnel = lobe["fresnel"]
+    f_normal, f_edge = ks * _fresnel_at(fresnel, 1.0), ks * _fresnel_at(fresnel, MU_BAR)
+    weight = float(ks.max())
+    params.update(base_metalness=1.0, specular_weight=weight)
+    if weight == 0.0:
+        params.update(base_color=(0.0, 0.0, 0.0))
+        notes.append(f"{name}: ks 0, reflects nothing: specular_weight 0, exact")
+        return
+    base = np.minimum(_rgb(f_normal / weight), 1.0)
+    schlick_edge = base + (1.0 - base) * (1.0 - MU_BAR) ** 5
+    tint = np.clip(_rgb(f_edge / weight) / schlick_edge, 0.0, 1.0)
+    params.update(base_color=tuple(base), specular_color=tuple(tint))
+    exact = fresnel.name in ("schlick", "none") and _grey(ks)
+    notes.append(f"{name}: base_metalness 1, specular_weight = max ks, base_color = ks F(1) / "
+                 "specular_weight, specular_color = the F82 tint matching ks F(1/7) (OpenPBR's "
+                 "F82-tint Schlick Fresnel), " + (
+                     "exact" if exact else "approximate (exact for schlick or none with a grey "
+                                           "ks)"))
+
+
+def _dielectric(lobe, name, params, notes):
+    """The specular lobe as OpenPBR's dielectric reflection: specular_ior and specular_color."""
+    ks = np.atleast_1d(np.asarray(lobe["ks"], float))
+    fresnel = lobe["fresnel"]
+    if fresnel.name == "dielectric" and _grey(fresnel["eta"]):
+        ior, color = float(np.atleast_1d(fresnel["eta"])[0]), _rgb(ks)
+        how, exact = "specular_ior = eta, specular_color = ks", True
+    elif fresnel.name == "none":
+        ior, color = ior_of_f0(F0_NONE), _rgb(ks)
+        how, exact = (f"Fresnel none -> specular_ior {ior_of_f0(F0_NONE):.6g} (F0 = {F0_NONE}: "
+                      "F within 1e-4 of 1), specular_color = ks"), False
+    else:
+        f0 = _rgb(_fresnel_at(fresnel, 1.0))
+        top = float(f0.max())
+        ior, color = ior_of_f0(top), _rgb(ks) * (f0 / top if top > 0.0 else 1.0)
+        how, exact = ("specular_ior with the same F0 (the dielectric Fresnel curve), "
+                      "specular_color = ks F0 / max F0"), False
+    clipped = bool(np.any(color > 1.0))
+    params.update(specular_weight=1.0, specular_ior=ior,
+                  specular_color=tuple(np.clip(color, 0.0, 1.0)))
+    notes.append(f"{name}: dielectric specular layer, {how}, " + (
+        "approximate: specular_color clamped to [0, 1]" if clipped else
+        "exact" if exact else "approximate"))
+
+
+def _diffuse(lobe, name, params, notes, albedo_weight):
+    """base_color (compensating the 1 - E_spec(wo) weight where there is a specular layer) and
+    base_diffuse_roughness."""
+    rho = _rgb(lobe["albedo"])
+    if lobe.name == "oren-nayar":
+        sigma, rho = _eon_match(lobe)
+        params["base_diffuse_roughness"] = sigma
+        notes.append(f"{name}: oren-nayar -> base_diffuse_roughness and base_color minimising "
+                     "the relative deviation of OpenPBR's energy-preserving Oren-Nayar (EON, "
+                     "Portsmouth et al. 2025) from Oren & Nayar's eq. 30 (they differ on the "
+                     "backscattering side and by EON's multiple-scattering term), approximate")
+    else:
+        notes.append(f"{name}: lambert -> base_color = albedo, base_diffuse_roughness 0 "
+                     "(OpenPBR's EON diffuse is Lambert at 0), exact")
+    if albedo_weight is not None:
+        low, high = albedo_weight.min(axis=0), albedo_weight.max(axis=0)
+        rho = rho * 2.0 / np.maximum(low + high, 1e-300)  # minimax of |c q - 1| over the grid
+        notes.append(f"{name}: base_color also divided by the mean of the extreme 1 - E_spec(wo) "
+                     "weights OpenPBR's albedo scaling puts on the diffuse layer, approximate")
+    clipped = bool(np.any(rho > 1.0))
+    params.update(base_weight=1.0, base_color=tuple(np.clip(rho, 0.0, 1.0)))
+    if clipped:
+        notes.append(f"{name}: base_color clamped to [0, 1], approximate")
+
+
+def _eon_match(lobe):
+    """(base_diffuse_roughness, base_color) of the EON lobe closest to an ``oren-nayar`` lobe:
+    for each roughness on a grid of 41 in [0, 1], the colour that minimises the largest
+    relative difference per channel (2 / (min + max) of the ratio, EON being nearly linear in
+    rho); the pair with the smallest :func:`relative_deviation` wins. The grid starts from
+    rho A_ON / A_FON, which matches Fujii's form to eq. 30 on the forward side."""
+    from ..geometry import directions_from_degrees
+    from .export import GRID_PHI_I, GRID_PHI_O, GRID_THETA
+    ti, pi_, to, po = np.meshgrid(GRID_THETA, GRID_PHI_I, GRID_THETA, GRID_PHI_O, indexing="ij")
+    wi, wo = directions_from_degrees(ti.ravel(), pi_.ravel()), directions_from_degrees(
+        to.ravel(), po.ravel())
+    ours = np.broadcast_to(lobe.eval(wi, wo), (len(wi), 3))
+    keep = ours.max(axis=1) >= 1e-3 * ours.max()
+    ours = ours[keep]
+    wi, wo = wi[keep], wo[keep]
+    s2 = float(lobe["sigma"]) ** 2
+    a_on = 1.0 - 0.5 * s2 / (s2 + 0.33)  # Oren & Nayar 1994, eq. 30
+    best = None
+    for sigma in np.linspace(0.0, 1.0, 41):
+        rho = np.minimum(_rgb(lobe["albedo"]) * a_on * (1.0 + FUJII * sigma), 1.0)
+        q = eon_eval(rho, sigma, wi, wo) / np.maximum(ours, 1e-300)
+        rho = np.clip(rho * 2.0 / np.maximum(q.min(axis=0) + q.max(axis=0), 1e-300), 0.0, 1.0)
+        dev = float((np.abs(eon_eval(rho, sigma, wi, wo) - ours) / np.maximum(ours, 1e-300))
+                    .max())
+        if best is None or dev < best[0]:
+            best = (dev, float(sigma), rho)
+    return best[1], best[2]
+
+
+def _mapping(model):
+    """(params, notes) of the open_pbr_surface for ``model``: floats, and tuples of 3 floats for
+    colours."""
+    params, notes = _inputs(model)
+    return {k: v if isinstance(v, str) else tuple(float(c) for c in v) if np.ndim(v) else
+            float(v) for k, v in params.items()}, notes
+
+
+def _inputs(model):
+    from .export import GRID_PHI_O, GRID_THETA
+    from ..geometry import directions_from_degrees
+    check_materialx(model)
+    (dn, diffuse), (sn, specular) = _lobes(model)
+    params, notes = {}, []
+    if specular is None:
+        params.update(specular_weight=0.0)
+        notes.append(f"{dn}: specular_weight 0 (no specular layer), exact")
+        _diffuse(diffuse, dn, params, notes, None)
+        return params, notes
+    _roughness(specular, sn, params, notes)
+    if diffuse is None and specular["fresnel"].name != "dielectric":
+        _metal(specular, sn, params, notes)
+        return params, notes
+    params.update(base_metalness=0.0)
+    _dielectric(specular, sn, params, notes)
+    if diffuse is None:
+        params.update(base_weight=0.0)
+        notes.append(f"{sn}: base_weight 0 (no diffuse layer under the dielectric), exact")
+        return params, notes
+    # the weight 1 - E_spec(wo) over the viewing directions of relative_deviation's grid
+    t, p = np.meshgrid(GRID_THETA, GRID_PHI_O, indexing="ij")
+    wo = directions_from_degrees(t.ravel(), p.ravel())
+    at, ab = openpbr_alphas(params["specular_roughness"],
+                            params.get("specular_roughness_anisotropy", 0.0))
+    wo_t = _quarter_turn(wo) if params.get("geometry_tangent") == "bitangent" else wo
+    e = specular_albedo(wo_t, at, ab, modulated_ior(params["specular_ior"], 1.0))
+    weight = 1.0 - np.asarray(params["specular_color"])[None, :] * e[:, None]
+    _diffuse(diffuse, dn, params, notes, weight)
+    return params, notes
+
+
+# --- the document -----------------------------------------------------------------------------
+
+def _value(value):
+    arr = np.atleast_1d(np.asarray(value, float))
+    return ", ".join(repr(float(v)) for v in arr)
+
+
+def to_materialx(model):
+    """Convert ``model`` to a MaterialX document with an ``open_pbr_surface``.
+
+    Returns
+    -------
+    Export
+        ``format`` ``"materialx"``, the document's text, and ``equivalent``: the shader's
+        inputs as :func:`openpbr_eval` takes them.
+
+    Raises
+    ------
+    InputError
+        For a model without an OpenPBR counterpart (the message lists the shapes that export).
+    """
+    from .. import __version__
+    params, notes = _mapping(model)
+    deviation = relative_deviation(model.eval, lambda wi, wo: openpbr_eval(params, wi, wo))
+    exact = deviation <= EXACT and not any("approximate" in n for n in notes)
+    verdict = ("exact" if exact else "APPROXIMATE") + (
+        f": largest relative difference of f over directions up to 80 degrees {deviation:.3g}")
+    comment = [f"brdf {__version__} export of {model} as OpenPBR Surface 1.1", verdict, *notes,
+               "OpenPBR's multiple-scattering compensation, if the renderer adds it, is not "
+               "counted"]
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<!--",
+             *(f"  {_comment(line)}" for line in comment), "-->",
+             f'<materialx version="{MATERIALX_VERSION}">']
+    tangent = params.get("geometry_tangent") == "bitangent"
+    if tangent:
+        lines += [f'  <bitangent name="{BITANGENT_NAME}" type="vector3">',
+                  '    <input name="space" type="string" value="world" />', "  </bitangent>"]
+    doc = f"brdf export of {model}: {verdict}"
+    lines.append(f'  <{NODE} name="{SHADER_NAME}" type="surfaceshader" doc={quoteattr(doc)}>')
+    for name in DEFAULTS:
+        if name in params:
+            lines.append(f'    <input name="{name}" type="{TYPES.get(name, "float")}" '
+                         f'value="{_value(params[name])}" />')
+    if tangent:
+        lines.append(f'    <input name="geometry_tangent" type="vector3" '
+                     f'nodename="{BITANGENT_NAME}" />')
+    lines += [f"  </{NODE}>", f'  <surfacematerial name="{MATERIAL_NAME}" type="material">',
+              f'    <input name="surfaceshader" type="surfaceshader" nodename="{SHADER_NAME}" />',
+              "  </surfacematerial>", "</materialx>", ""]
+    return Export("materialx", "\n".join(lines), str(model), exact, tuple(notes), deviation,
+                  params)
+
+
+def _comment(text):
+    return text.replace("--", "- -")  # the one sequence an XML comment cannot hold
