@@ -63,6 +63,9 @@ __all__ = ["to_materialx", "openpbr_eval", "check_materialx", "EXPORTABLE", "NOD
 NODE = "open_pbr_surface"
 #: The MaterialX document version written.
 MATERIALX_VERSION = "1.39"
+#: Our RGB channels as they are: linear, Rec. 709 primaries (MaterialX's default working space,
+#: stated so that no reader converts them).
+COLORSPACE = "lin_rec709"
 SHADER_NAME, MATERIAL_NAME, BITANGENT_NAME = "brdf_shader", "brdf_material", "brdf_bitangent"
 DIFFUSE, SPECULAR = ("lambert", "oren-nayar"), ("ggx", "beckmann")
 #: Model shapes that export (a sum's lobes in any order).
@@ -547,7 +550,7 @@ def to_materialx(model):
                "counted"]
     lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<!--",
              *(f"  {_comment(line)}" for line in comment), "-->",
-             f'<materialx version="{MATERIALX_VERSION}">']
+             f'<materialx version="{MATERIALX_VERSION}" colorspace="{COLORSPACE}">']
     tangent = params.get("geometry_tangent") == "bitangent"
     if tangent:
         lines += [f'  <bitangent name="{BITANGENT_NAME}" type="vector3">',
