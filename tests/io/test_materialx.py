@@ -334,3 +334,37 @@ def test_cli_export_writes_a_valid_document_and_exits_by_exactness(capsys, mx, s
     assert status == 2
     assert_one_error_line(err, "no materialx equivalent", "lambert, oren-nayar")
     assert not (tmp_path / "phong.mtlx").exists()
+
+
+@pytest.mark.parametrize("old,new", [
+    ('name="base_color"', 'name="base_colour"'),           # not an input of the nodedef
+    ('name="specular_roughness" type="float"', 'name="specular_roughness" type="color3"'),
+])
+def test_the_document_check_catches_names_and_types_off_the_nodedef(mx, stdlib, tmp_path, old,
+                                                                     new):
+    text = brdf.export("lambert(albedo=0.5) + ggx(ks=0.3, alpha=0.2)", "materialx").text
+    assert old in text
+    path = tmp_path / "broken.mtlx"
+    path.write_text(text.replace(old, new), encoding="utf-8")
+    with pytest.raises(AssertionError):
+        load(mx, stdlib, path)
+
+
+def test_roughness_beyond_openpbrs_range_is_capped_and_stated():
+    result = brdf.export("ggx(alpha=2, masking=height-correlated, fresnel=schlick(f0=0.9))",
+                         "materialx")
+    assert result.equivalent["specular_roughness"] == 1.0
+    assert any("capped at 1" in n for n in result.notes) and not result.exact
+
+
+def test_cli_fit_exports_a_materialx_document_beside_the_report(capsys, mx, stdlib, tmp_path):
+    table = tmp_path / "plastic.csv"
+    brdf.write(brdf.measure("lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2)",
+                            "grid:15,30"), table)
+    report = tmp_path / "fit.json"
+    status, out, _ = run(capsys, "fit", str(table), "lambert + ggx(alpha=0.4)", "--shared",
+                         "ks", "-o", str(report), "--export", "materialx")
+    assert status == 0 and "materialx export" in out
+    document = tmp_path / "fit.mtlx"
+    assert brdf.load_report(report).spec in document.read_text(encoding="utf-8")
+    assert load(mx, stdlib, document)["base_metalness"] == 0.0
