@@ -292,8 +292,10 @@ def eon_eval(rho, sigma, wi, wo):
     """The energy-preserving Oren-Nayar BRDF (EON) with base_weight 1, shaped (..., 3):
     Fujii's form rho / pi (A + B s / t) plus the multiple-scattering term rho_ms / pi
     (1 - E(wi)) (1 - E(wo)) / (1 - <E>), rho_ms = rho^2 <E> / (1 - rho (1 - <E>)) (Portsmouth
-    et al. 2025, eqs. 1-3 and 8; spec 1.1 eqs. FON_brdf and EON_comp, whose printed rho_ms puts
-    this 1 / (1 - <E>) inside). sigma = 0 is Lambert's rho / pi exactly."""
+    et al. 2025, "EON", JCGT 14(1), the BRDF of its listing; spec 1.1 eqs. FON_brdf and
+    EON_comp, whose printed rho_ms carries an extra 1 / pi: with it a white EON would reflect
+    1 / pi of what the compensation must add, against the furnace test the spec states).
+    sigma = 0 is Lambert's rho / pi exactly."""
     rho, sigma = _rgb(rho), float(sigma)
     ci, co = wi[..., 2], wo[..., 2]
     if sigma == 0.0:
@@ -486,6 +488,7 @@ def _mapping(model):
 
 
 def _inputs(model):
+    """The inputs (numpy values) and notes, before _mapping makes them plain floats."""
     from .export import GRID_PHI_O, GRID_THETA
     from ..geometry import directions_from_degrees
     check_materialx(model)
