@@ -429,7 +429,10 @@ def _diffuse(lobe, name, params, notes, albedo_weight):
     """base_color (compensating the 1 - E_spec(wo) weight where there is a specular layer) and
     base_diffuse_roughness."""
     rho = _rgb(lobe["albedo"])
-    if lobe.name == "oren-nayar":
+    if lobe.name == "oren-nayar" and float(lobe["sigma"]) == 0.0:
+        notes.append(f"{name}: oren-nayar with sigma 0 is Lambert: base_color = albedo, "
+                     "base_diffuse_roughness 0, exact")
+    elif lobe.name == "oren-nayar":
         sigma, rho = _eon_match(lobe)
         params["base_diffuse_roughness"] = sigma
         notes.append(f"{name}: oren-nayar -> base_diffuse_roughness and base_color minimising "

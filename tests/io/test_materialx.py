@@ -110,6 +110,7 @@ EXACT = [
     "ggx(ks=0.7, alpha=0.1, alpha_y=0.3, masking=height-correlated, fresnel=schlick(f0=0.5))",
     "ggx(ks=0.8, alpha=0.3, alpha_y=0.1, masking=height-correlated, fresnel=dielectric(eta=1.5))",
     "ggx(ks=0.5, alpha=0.25, masking=height-correlated)",
+    "oren-nayar(albedo=[0.5,0.4,0.3], sigma=0)",
 ]
 
 
