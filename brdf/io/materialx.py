@@ -29,14 +29,16 @@ The mapping (OpenPBR Surface specification 1.1, academysoftwarefoundation.github
   ks (F82 with tint 1 is Schlick's), approximate for the other Fresnel terms. A ``ggx`` lobe with
   a ``dielectric`` Fresnel is a dielectric instead: base_weight 0, specular_ior = eta,
   specular_color = ks (exact).
-* ``lambert + ggx`` (a plastic): base_metalness 0; the specular lobe is the dielectric's
-  reflection specular_color F(mu, specular_ior) D G2 / (4 cos cos): ``dielectric`` -> its eta
-  (exact), ``none`` -> an ior with F0 = 0.9999 (F within 1e-4 of 1 at every angle),
-  ``schlick``/``conductor`` -> the ior with the same F0 (approximate). The diffuse layer is
-  weighted by 1 - E_spec(wo), E_spec the directional albedo of the specular lobe (spec,
-  "Glossy-diffuse" with the albedo scaling of "Layering"), which ``lambert + ggx`` does not
-  have: base_color = albedo c, with c per channel the minimax compensation of that weight over
-  the deviation grid, clamped to [0, 1] (approximate).
+* ``lambert + ggx`` (a plastic): base_metalness 0; the specular lobe becomes the dielectric's
+  reflection specular_color F(mu, specular_ior) D G2 / (4 cos cos), and OpenPBR weighs the
+  diffuse layer by 1 - E_spec(wo), E_spec the directional albedo of the untinted lobe (spec,
+  "Glossy-diffuse" with the albedo scaling of "Layering"; specular_color does not tint the
+  light into the base, "Dielectric base"), which ``lambert + ggx`` does not have. So the pair
+  (specular_ior, specular_color) is the best of 25 for the whole material: the dielectric
+  closest to the lobe (``dielectric`` -> its eta and ks; ``none`` -> F0 = 0.9999 and ks;
+  ``schlick``/``conductor`` -> the same F0) and one per F0 on a grid, with specular_color =
+  ks F(1) / F0; base_color = albedo c, c the minimax compensation of 1 - E_spec over the
+  viewing directions, clamped to [0, 1] (approximate).
 * ``beckmann`` -> GGX with the same alpha (OpenPBR is GGX only: approximate); separable Smith
   masking -> OpenPBR's height-correlated Smith G2 (Heitz 2014, eq. 99: approximate).
 * Other families (phong, ward, lafortune, ...), mirrors and sums of more than one diffuse and
@@ -91,7 +93,7 @@ ALBEDO_GRID = 192
 
 # --- the evaluator --------------------------------------------------------------------------------
 
-def openpbr_eval(params, wi, wo):
+def openpbr_eval(params, wi, wo, albedo_grid=None):
     """The BRDF (no cosine) an ``open_pbr_surface`` with ``params`` describes, shaped (..., 3).
 
     OpenPBR Surface 1.1 with coat, fuzz, transmission, subsurface, thin film and emission off
@@ -100,7 +102,10 @@ def openpbr_eval(params, wi, wo):
     scaling; wo is the viewer), f_spec the GGX dielectric reflection tinted by specular_color
     with the ior modulated by specular_weight (spec, eq. modulated_ior), f_diffuse the EON
     diffuse (Portsmouth et al. 2025) and the metal GGX with the F82-tint Fresnel. Masking is
-    Smith's height-correlated G2 (Heitz 2014, eq. 99); single scattering only.
+    Smith's height-correlated G2 (Heitz 2014, eq. 99); single scattering only. E_spec is the
+    albedo of the untinted lobe: specular_color tints the first reflection only, the light
+    transmitted into the base is not (spec, "Dielectric base"; MaterialX's dielectric_bsdf,
+    which the spec's reference graph layers over the base, weighs it so too).
 
     Parameters
     ----------
@@ -110,6 +115,8 @@ def openpbr_eval(params, wi, wo):
         anisotropy's tangent to our y axis (the document's ``<bitangent>`` connection).
     wi, wo : array_like, shape (..., 3)
         Directions towards the light and the viewer in the local frame.
+    albedo_grid : int, optional
+        Quadrature size of E_spec (default :data:`ALBEDO_GRID`).
 
     Returns
     -------
@@ -142,7 +149,7 @@ def openpbr_eval(params, wi, wo):
         eta = modulated_ior(p["specular_ior"], p["specular_weight"])
         tint = _rgb(p["specular_color"])
         spec = tint * dielectric_fresnel(mu, eta)[..., None] * dg
-        albedo = tint * specular_albedo(wo, at, ab, eta)[..., None]
+        albedo = specular_albedo(wo, at, ab, eta, albedo_grid)[..., None]
         diffuse = eon_eval(p["base_color"], p["base_diffuse_roughness"], wi, wo) * float(
             p["base_weight"])
         out = out + (1.0 - metalness) * (spec + (1.0 - albedo) * diffuse)
@@ -234,14 +241,14 @@ def f82_tint(f0, tint, mu):
     return schlick(mu) - mu * (1.0 - mu) ** 6 / b * (schlick(MU_BAR) - tint * schlick(MU_BAR))
 
 
-def specular_albedo(wo, at, ab, eta):
+def specular_albedo(wo, at, ab, eta, grid=None):
     """Directional albedo at ``wo`` of the untinted dielectric reflection lobe F D G2 / (4 cos
     cos), by midpoint quadrature over the square that samples D(h) cos(theta_h) (slope-space
     stretching of the isotropic GGX, Heitz 2014, sec. 5.3): E = mean of F G2 (wo.h) /
     (cos_o cos_h). Computed once per distinct wo."""
     if eta == 1.0:
         return np.zeros(wo.shape[:-1])
-    n = ALBEDO_GRID
+    n = grid or ALBEDO_GRID
     u = (np.arange(n) + 0.5) / n
     u1, u2 = np.meshgrid(u, u, indexing="ij")
     radius = np.sqrt(u1 / (1.0 - u1)).ravel()  # slope radius of the unit GGX: P(r) = r^2/(1+r^2)
@@ -425,9 +432,8 @@ def _dielectric(lobe, name, params, notes):
         "exact" if exact else "approximate"))
 
 
-def _diffuse(lobe, name, params, notes, albedo_weight):
-    """base_color (compensating the 1 - E_spec(wo) weight where there is a specular layer) and
-    base_diffuse_roughness."""
+def _diffuse(lobe, name, params, notes):
+    """base_color and base_diffuse_roughness of the diffuse lobe alone."""
     rho = _rgb(lobe["albedo"])
     if lobe.name == "oren-nayar" and float(lobe["sigma"]) == 0.0:
         notes.append(f"{name}: oren-nayar with sigma 0 is Lambert: base_color = albedo, "
@@ -442,11 +448,6 @@ def _diffuse(lobe, name, params, notes, albedo_weight):
     else:
         notes.append(f"{name}: lambert -> base_color = albedo, base_diffuse_roughness 0 "
                      "(OpenPBR's EON diffuse is Lambert at 0), exact")
-    if albedo_weight is not None:
-        low, high = albedo_weight.min(axis=0), albedo_weight.max(axis=0)
-        rho = rho * 2.0 / np.maximum(low + high, 1e-300)  # minimax of |c q - 1| over the grid
-        notes.append(f"{name}: base_color also divided by the mean of the extreme 1 - E_spec(wo) "
-                     "weights OpenPBR's albedo scaling puts on the diffuse layer, approximate")
     clipped = bool(np.any(rho > 1.0))
     params.update(base_weight=1.0, base_color=tuple(np.clip(rho, 0.0, 1.0)))
     if clipped:
@@ -492,36 +493,72 @@ def _mapping(model):
 
 def _inputs(model):
     """The inputs (numpy values) and notes, before _mapping makes them plain floats."""
-    from .export import GRID_PHI_O, GRID_THETA
-    from ..geometry import directions_from_degrees
     check_materialx(model)
     (dn, diffuse), (sn, specular) = _lobes(model)
     params, notes = {}, []
     if specular is None:
         params.update(specular_weight=0.0)
         notes.append(f"{dn}: specular_weight 0 (no specular layer), exact")
-        _diffuse(diffuse, dn, params, notes, None)
+        _diffuse(diffuse, dn, params, notes)
         return params, notes
     _roughness(specular, sn, params, notes)
     if diffuse is None and specular["fresnel"].name != "dielectric":
         _metal(specular, sn, params, notes)
         return params, notes
     params.update(base_metalness=0.0)
-    _dielectric(specular, sn, params, notes)
     if diffuse is None:
+        _dielectric(specular, sn, params, notes)
         params.update(base_weight=0.0)
         notes.append(f"{sn}: base_weight 0 (no diffuse layer under the dielectric), exact")
         return params, notes
-    # the weight 1 - E_spec(wo) over the viewing directions of relative_deviation's grid
+    _diffuse(diffuse, dn, params, notes)
+    _plastic(model, specular, sn, params, notes)
+    return params, notes
+
+
+def _plastic(model, lobe, name, params, notes):
+    """specular_ior, specular_color and the compensated base_color of a diffuse + specular
+    model, the most faithful of 25 candidates: the dielectric closest to the lobe alone (see
+    _dielectric) and one per F0 on a geometric grid from 0.02 to F0_NONE, with specular_color
+    = ks F(1) / F0 (clamped); each with base_color divided per the minimax of the 1 - E_spec(wo)
+    weight over relative_deviation's viewing directions. The smallest deviation wins."""
+    from ..geometry import directions_from_degrees
+    from .export import GRID_PHI_O, GRID_THETA
     t, p = np.meshgrid(GRID_THETA, GRID_PHI_O, indexing="ij")
     wo = directions_from_degrees(t.ravel(), p.ravel())
     at, ab = openpbr_alphas(params["specular_roughness"],
                             params.get("specular_roughness_anisotropy", 0.0))
-    wo_t = _quarter_turn(wo) if params.get("geometry_tangent") == "bitangent" else wo
-    e = specular_albedo(wo_t, at, ab, modulated_ior(params["specular_ior"], 1.0))
-    weight = 1.0 - np.asarray(params["specular_color"])[None, :] * e[:, None]
-    _diffuse(diffuse, dn, params, notes, weight)
-    return params, notes
+    if params.get("geometry_tangent") == "bitangent":
+        wo = _quarter_turn(wo)
+    rho = np.asarray(params["base_color"])
+    first = []
+    _dielectric(lobe, name, params, first)
+    ks = _rgb(np.atleast_1d(np.asarray(lobe["ks"], float)) * _fresnel_at(lobe["fresnel"], 1.0))
+    candidates = [(params["specular_ior"], np.asarray(params["specular_color"]))] + [
+        (ior_of_f0(f0), np.clip(ks / f0, 0.0, 1.0)) for f0 in np.geomspace(0.02, F0_NONE, 24)]
+    best = None
+    for ior, color in candidates:
+        e = specular_albedo(wo, at, ab, modulated_ior(ior, 1.0), 48)
+        weight = 1.0 - e
+        base = np.clip(rho * 2.0 / max(weight.min() + weight.max(), 1e-300), 0.0, 1.0)
+        trial = {**params, "specular_ior": ior, "specular_color": tuple(color),
+                 "base_color": tuple(base)}
+        dev = relative_deviation(model.eval, lambda wi, wo_: openpbr_eval(trial, wi, wo_, 48))
+        if best is None or dev < best[0]:
+            best = (dev, trial, ior, color, rho * 2.0 / max(weight.min() + weight.max(), 1e-300))
+    _, trial, ior, color, base = best
+    params.update(trial)
+    if ior == candidates[0][0] and np.array_equal(color, candidates[0][1]):
+        notes.extend(first)
+    else:
+        notes.append(f"{name}: dielectric specular layer, specular_ior {ior:.6g} (F0 "
+                     f"{float(dielectric_fresnel(1.0, ior)):.4g}) and specular_color = ks F(1) / "
+                     "F0, the F0 of 24 on a grid (and the dielectric closest to the lobe alone) "
+                     "that gives the whole material the smallest deviation, approximate")
+    notes.append(f"{name}: base_color divided by the mean of the extreme 1 - E_spec(wo) weights "
+                 "OpenPBR's albedo scaling puts on the diffuse layer, approximate")
+    if np.any(base > 1.0):
+        notes.append(f"{name}: base_color clamped to [0, 1], approximate")
 
 
 # --- the document -----------------------------------------------------------------------------

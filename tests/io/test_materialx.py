@@ -244,19 +244,34 @@ def test_openpbr_eval_refuses_layers_it_does_not_evaluate():
 def test_plastic_compensates_the_albedo_scaling_and_states_it():
     result = brdf.export("lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.3, alpha=0.2)", "materialx")
     p = result.equivalent
-    assert p["base_metalness"] == 0.0 and p["specular_color"] == pytest.approx((0.3,) * 3)
-    assert mtlx.dielectric_fresnel(1.0, p["specular_ior"]) == pytest.approx(mtlx.F0_NONE)
-    # the diffuse layer is weighted by 1 - 0.3 E_spec (E_spec near 0.9): base_color > albedo
+    assert p["base_metalness"] == 0.0
+    # ks at normal incidence: specular_color x F0(specular_ior)
+    f0 = mtlx.dielectric_fresnel(1.0, p["specular_ior"])
+    assert np.multiply(p["specular_color"], f0) == pytest.approx((0.3,) * 3)
+    # the diffuse layer is weighted by 1 - E_spec (E_spec near 0.4): base_color > albedo
     assert np.all(np.array(p["base_color"]) > np.array([0.5, 0.4, 0.3]) * 1.2)
     assert any("1 - E_spec" in n for n in result.notes)
-    assert not result.exact and result.deviation < 0.06  # measured 0.043
+    assert not result.exact and result.deviation < 0.08  # measured 0.061
+
+
+def test_specular_color_tints_the_reflection_not_the_light_into_the_base():
+    """spec 1.1, "Dielectric base": a black specular_color removes the highlight but the base
+    still gets only 1 - E_spec of the light (the untinted Fresnel's share)."""
+    p = {"base_color": (1.0, 1.0, 1.0), "specular_roughness": 0.5, "specular_ior": 2.0,
+         "specular_color": (0.0, 0.0, 0.0)}
+    for theta in (0.0, 70.0):
+        wo = brdf.geometry.directions_from_degrees(theta, 0.0)
+        e = hemisphere_integral(lambda w: mtlx.openpbr_eval(
+            p, w, np.broadcast_to(wo, w.shape))[:, 0] * w[:, 2])
+        e_spec = float(mtlx.specular_albedo(wo, 0.25, 0.25, 2.0))
+        assert e_spec > 0.1 and e == pytest.approx(1.0 - e_spec, rel=1e-6)
 
 
 def test_bright_plastic_is_clamped_and_exported_with_its_deviation():
     result = brdf.export("lambert(albedo=0.9) + ggx(ks=0.6, alpha=0.3)", "materialx")
     assert result.equivalent["base_color"] == (1.0, 1.0, 1.0)
     assert any("clamped" in n for n in result.notes)
-    assert result.deviation > 0.1
+    assert result.deviation > 0.1  # measured 0.31
 
 
 def test_metal_with_an_exact_fresnel_gets_the_f82_tint_of_its_curve():
