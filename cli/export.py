@@ -4,10 +4,12 @@ Mitsuba 3 BSDF, a glTF 2.0 material or a MaterialX OpenPBR Surface (the conversi
 
 #: Formats and their file extensions, as in brdf.io.export.FORMATS (not imported here:
 #: --help stays fast; a test keeps the two equal).
-FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx"}
+FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx",
+           "materialx-standard-surface": ".mtlx"}
 FORMAT_HELP = ("mitsuba (a Mitsuba 3 scene holding <bsdf id=\"material\">), gltf (a glTF 2.0 "
-               "file with one metallic-roughness material) or materialx (a MaterialX document "
-               "with an open_pbr_surface and its surfacematerial)")
+               "file with one metallic-roughness material), materialx (a MaterialX document "
+               "with an open_pbr_surface and its surfacematerial) or "
+               "materialx-standard-surface (the same with a standard_surface)")
 
 
 def add_parser(sub, subcommand):
@@ -46,7 +48,7 @@ def export_path(args):
     from brdf.errors import InputError
     if not args.export:
         if args.export_to:
-            raise InputError("--export-to needs --export mitsuba|gltf|materialx")
+            raise InputError("--export-to needs --export FORMAT")
         return None
     if args.export_to:
         return args.export_to

@@ -54,12 +54,14 @@ from ..errors import InputError
 __all__ = ["export", "Export", "check_families", "FORMATS", "EXPORTABLE", "gltf_eval", "relative_deviation"]
 
 #: Formats and the extension of the file each writes.
-FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx"}
+FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx",
+           "materialx-standard-surface": ".mtlx"}
 #: Model families each format takes (sums of them where the format says).
 EXPORTABLE = {"mitsuba": ("lambert", "ggx", "beckmann", "mirror"),
               "gltf": ("lambert", "ggx", "lambert + ggx"),
               "materialx": ("lambert", "oren-nayar", "ggx", "beckmann", "lambert + ggx",
                             "lambert + beckmann", "oren-nayar + ggx", "oren-nayar + beckmann")}
+EXPORTABLE["materialx-standard-surface"] = EXPORTABLE["materialx"]
 #: Relative deviation below which a conversion is called exact (float32 renderers round at 1e-7).
 EXACT = 1e-9
 #: Direction grid of :func:`relative_deviation`, degrees: up to the fits' default cutoff.
@@ -148,7 +150,8 @@ def export(obj, format, path=None, force=False):
     if model.channels not in (1, 3):
         raise InputError(f"{model}: {model.channels} channels; {format} takes one channel or "
                          "RGB (spectral models have no wavelengths to convert)")
-    result = {"mitsuba": _mitsuba, "gltf": _gltf, "materialx": _materialx}[format](model)
+    result = {"mitsuba": _mitsuba, "gltf": _gltf, "materialx": _materialx,
+              "materialx-standard-surface": _materialx_standard_surface}[format](model)
     if path is not None:
         with atomic_output(path, force) as tmp:
             tmp.write_text(result.text, encoding="utf-8")
@@ -177,7 +180,7 @@ def check_families(model, format):
     without converting anything (``brdf-fit fit --export`` asks before it fits)."""
     model = _model_of(model)
     _refuse_custom(model, format)
-    if format == "materialx":
+    if format.startswith("materialx"):
         from .materialx import check_materialx
         return check_materialx(model)
     shape = " + ".join(lobe.name for lobe in _gltf_lobes(model)[0])
@@ -192,6 +195,11 @@ def check_families(model, format):
 def _materialx(model):
     from .materialx import to_materialx  # brdf/io/materialx.py: OpenPBR Surface documents
     return to_materialx(model)
+
+
+def _materialx_standard_surface(model):
+    from .materialx import to_materialx
+    return to_materialx(model, "standard_surface")
 
 
 def _refuse_custom(model, format):

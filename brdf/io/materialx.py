@@ -48,6 +48,16 @@ OpenPBR leaves multiple scattering between microfacets to the renderer ("should 
 for this"); :func:`openpbr_eval` evaluates the single-scattering lobes the spec writes, like
 our models, so renderers that add an energy-compensation lobe (MaterialX's GLSL) are brighter
 for rough lobes than the deviation says.
+
+``to_materialx(model, "standard_surface")`` (``format="materialx-standard-surface"``) writes
+an Autodesk Standard Surface instead, measured against :func:`standard_surface_eval`, which
+follows MaterialX's graph of that node (the Standard Surface document leaves the anisotropy,
+Oren-Nayar and layering details to implementations). There ``oren-nayar`` (sigma <= 1) and
+``ggx`` conductors are exact: MaterialX's Oren-Nayar is eq. 30 with sigma = diffuse_roughness,
+and its metal is the exact conductor Fresnel of Gulbrandsen's index for (base_color,
+specular_color), which we invert; roughness r^2 = sqrt(alpha_x alpha_y), anisotropy
+1 - alpha_min / alpha_max, specular_rotation 0.25 for a lobe rougher along y; a plastic's
+specular weight also scales E_spec in the layering, so a Fresnel-free lobe maps closely.
 """
 
 import math
@@ -58,8 +68,8 @@ import numpy as np
 from ..errors import InputError
 from .export import EXACT, Export, relative_deviation
 
-__all__ = ["to_materialx", "openpbr_eval", "check_materialx", "EXPORTABLE", "NODE",
-           "MATERIALX_VERSION"]
+__all__ = ["to_materialx", "openpbr_eval", "standard_surface_eval", "check_materialx",
+           "EXPORTABLE", "NODE", "SS_NODE", "MATERIALX_VERSION"]
 
 #: The standard-library node written (nodedef ``ND_open_pbr_surface_surfaceshader``).
 NODE = "open_pbr_surface"
@@ -149,7 +159,8 @@ def openpbr_eval(params, wi, wo, albedo_grid=None):
         eta = modulated_ior(p["specular_ior"], p["specular_weight"])
         tint = _rgb(p["specular_color"])
         spec = tint * dielectric_fresnel(mu, eta)[..., None] * dg
-        albedo = specular_albedo(wo, at, ab, eta, albedo_grid)[..., None]
+        albedo = (specular_albedo(wo, at, ab, eta, albedo_grid)[..., None]
+                  if float(p["base_weight"]) != 0.0 else 0.0)  # no base: E_spec weighs nothing
         diffuse = eon_eval(p["base_color"], p["base_diffuse_roughness"], wi, wo) * float(
             p["base_weight"])
         out = out + (1.0 - metalness) * (spec + (1.0 - albedo) * diffuse)
@@ -483,10 +494,10 @@ def _eon_match(lobe):
     return best[1], best[2]
 
 
-def _mapping(model):
-    """(params, notes) of the open_pbr_surface for ``model``: floats, and tuples of 3 floats for
+def _mapping(model, shader=NODE):
+    """(params, notes) of the ``shader`` node for ``model``: floats, and tuples of 3 floats for
     colours."""
-    params, notes = _inputs(model)
+    params, notes = (_inputs if shader == NODE else _ss_inputs)(model)
     return {k: v if isinstance(v, str) else tuple(float(c) for c in v) if np.ndim(v) else
             float(v) for k, v in params.items()}, notes
 
@@ -568,28 +579,36 @@ def _value(value):
     return ", ".join(repr(float(v)) for v in arr)
 
 
-def to_materialx(model):
-    """Convert ``model`` to a MaterialX document with an ``open_pbr_surface``.
+def to_materialx(model, shader=NODE):
+    """Convert ``model`` to a MaterialX document with an ``open_pbr_surface`` (or a
+    ``standard_surface``) and the ``surfacematerial`` that uses it.
+
+    Parameters
+    ----------
+    model : Model
+    shader : {"open_pbr_surface", "standard_surface"}
 
     Returns
     -------
     Export
-        ``format`` ``"materialx"``, the document's text, and ``equivalent``: the shader's
-        inputs as :func:`openpbr_eval` takes them.
+        ``format`` ``"materialx"`` (``"materialx-standard-surface"``), the document's text, and
+        ``equivalent``: the shader's inputs as :func:`openpbr_eval`
+        (:func:`standard_surface_eval`) takes them.
 
     Raises
     ------
     InputError
-        For a model without an OpenPBR counterpart (the message lists the shapes that export).
+        For a model without a counterpart (the message lists the shapes that export).
     """
     from .. import __version__
-    params, notes = _mapping(model)
-    deviation = relative_deviation(model.eval, lambda wi, wo: openpbr_eval(params, wi, wo))
+    title, order, evaluate = SHADERS[shader]  # defined at the end, after Standard Surface
+    params, notes = _mapping(model, shader)
+    deviation = relative_deviation(model.eval, lambda wi, wo: evaluate(params, wi, wo))
     exact = deviation <= EXACT and not any("approximate" in n for n in notes)
     verdict = ("exact" if exact else "APPROXIMATE") + (
         f": largest relative difference of f over directions up to 80 degrees {deviation:.3g}")
-    comment = [f"brdf {__version__} export of {model} as OpenPBR Surface 1.1", verdict, *notes,
-               "OpenPBR's multiple-scattering compensation, if the renderer adds it, is not "
+    comment = [f"brdf {__version__} export of {model} as {title}", verdict, *notes,
+               "multiple scattering between microfacets, if the renderer compensates it, is not "
                "counted"]
     lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<!--",
              *(f"  {_comment(line)}" for line in comment), "-->",
@@ -599,20 +618,303 @@ def to_materialx(model):
         lines += [f'  <bitangent name="{BITANGENT_NAME}" type="vector3">',
                   '    <input name="space" type="string" value="world" />', "  </bitangent>"]
     doc = f"brdf export of {model}: {verdict}"
-    lines.append(f'  <{NODE} name="{SHADER_NAME}" type="surfaceshader" doc={quoteattr(doc)}>')
-    for name in DEFAULTS:
+    lines.append(f'  <{shader} name="{SHADER_NAME}" type="surfaceshader" doc={quoteattr(doc)}>')
+    for name in order:
         if name in params:
             lines.append(f'    <input name="{name}" type="{TYPES.get(name, "float")}" '
                          f'value="{_value(params[name])}" />')
     if tangent:
         lines.append(f'    <input name="geometry_tangent" type="vector3" '
                      f'nodename="{BITANGENT_NAME}" />')
-    lines += [f"  </{NODE}>", f'  <surfacematerial name="{MATERIAL_NAME}" type="material">',
+    lines += [f"  </{shader}>", f'  <surfacematerial name="{MATERIAL_NAME}" type="material">',
               f'    <input name="surfaceshader" type="surfaceshader" nodename="{SHADER_NAME}" />',
               "  </surfacematerial>", "</materialx>", ""]
-    return Export("materialx", "\n".join(lines), str(model), exact, tuple(notes), deviation,
-                  params)
+    fmt = "materialx" if shader == NODE else "materialx-standard-surface"
+    return Export(fmt, "\n".join(lines), str(model), exact, tuple(notes), deviation, params)
 
 
 def _comment(text):
     return text.replace("--", "- -")  # the one sequence an XML comment cannot hold
+
+
+# --- Standard Surface -----------------------------------------------------------------------------
+# Autodesk Standard Surface (autodesk.github.io/standard-surface) leaves the anisotropy mapping,
+# the Oren-Nayar roughness and the layering weights to the implementation; these follow
+# MaterialX's graph of the node (libraries/bxdf/standard_surface.mtlx, MaterialX 1.39), which
+# renderers reading a .mtlx use: roughness_anisotropy, artistic_ior + conductor_bsdf for metals,
+# dielectric_bsdf (weight specular, tint specular_color) layered over oren_nayar_diffuse_bsdf.
+
+#: The Standard Surface node (nodedef ``ND_standard_surface_surfaceshader``).
+SS_NODE = "standard_surface"
+#: Its inputs this module writes or reads, with the nodedef's defaults.
+SS_DEFAULTS = {"base": 1.0, "base_color": (0.8, 0.8, 0.8), "diffuse_roughness": 0.0,
+               "metalness": 0.0, "specular": 1.0, "specular_color": (1.0, 1.0, 1.0),
+               "specular_roughness": 0.2, "specular_IOR": 1.5, "specular_anisotropy": 0.0,
+               "specular_rotation": 0.0}
+SS_OFF = ("transmission", "subsurface", "sheen", "coat", "thin_film_thickness", "emission")
+#: MaterialX's roughness_anisotropy clamps the anisotropy here (an aspect ratio of 50).
+SS_MAX_ANISOTROPY = 0.98
+#: artistic_ior clamps the reflectivity here.
+SS_MAX_REFLECTIVITY = 0.99
+
+
+def standard_surface_eval(params, wi, wo, albedo_grid=None):
+    """The BRDF (no cosine) a ``standard_surface`` with ``params`` describes, shaped (..., 3),
+    as MaterialX's graph of the node evaluates it with transmission, subsurface, sheen, coat,
+    thin film and emission off and single scattering: mix(specular layer, metal, metalness);
+    the metal a GGX conductor with the exact Fresnel of the index artistic_ior gives for
+    (base base_color, specular specular_color) (Gulbrandsen 2014); the specular layer
+    specular specular_color F(mu, specular_IOR) D G2 / (4 cos cos) over base base_color
+    times Oren-Nayar's eq. 30 with sigma = diffuse_roughness, the latter weighted by
+    1 - specular E_spec(wo) (MaterialX's dielectric_bsdf throughput: the untinted albedo).
+    Roughness: alpha_x = min(r^2 / sqrt(1 - a), 1), alpha_y = r^2 sqrt(1 - a) along the
+    tangent turned by specular_rotation x 360 degrees (roughness_anisotropy, rotate3d)."""
+    p = {**SS_DEFAULTS, **params}
+    on = [name for name in SS_OFF if float(p.get(name, 0.0)) != 0.0]
+    if on:
+        raise InputError(f"standard_surface_eval evaluates the base, metal and specular layers "
+                         f"only; {', '.join(on)} must be 0")
+    wi, wo = np.broadcast_arrays(np.asarray(wi, float), np.asarray(wo, float))
+    anisotropy = float(p["specular_anisotropy"])
+    ax, ay = standard_surface_alphas(p["specular_roughness"], anisotropy)
+    if anisotropy > 0.0 and float(p["specular_rotation"]) != 0.0:
+        turn = 2.0 * math.pi * float(p["specular_rotation"])
+        wi, wo = _rotated(wi, turn), _rotated(wo, turn)
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    mu = np.clip(np.sum(wo * h, axis=-1), 0.0, 1.0)
+    ci, co = wi[..., 2], wo[..., 2]
+    above = (ci > 0.0) & (co > 0.0)
+    dg = np.where(above, _ggx_d(h, ax, ay) * _ggx_g2(wi, wo, ax, ay)
+                  / (4.0 * np.where(above, ci * co, 1.0)), 0.0)[..., None]
+    metalness = float(p["metalness"])
+    out = 0.0
+    if metalness > 0.0:
+        n, k = artistic_ior(float(p["base"]) * _rgb(p["base_color"]),
+                            float(p["specular"]) * _rgb(p["specular_color"]))
+        out = out + metalness * conductor_fresnel(mu[..., None], n, k) * dg
+    if metalness < 1.0:
+        weight, eta = float(p["specular"]), float(p["specular_IOR"])
+        spec = weight * _rgb(p["specular_color"]) * dielectric_fresnel(mu, eta)[..., None] * dg
+        throughput = (1.0 - weight * specular_albedo(wo, ax, ay, eta, albedo_grid)[..., None]
+                      if float(p["base"]) != 0.0 else 1.0)  # no base: nothing to weigh
+        s = np.sum(wi * wo, axis=-1) - ci * co
+        sigma2 = float(p["diffuse_roughness"]) ** 2
+        a = 1.0 - 0.5 * sigma2 / (sigma2 + 0.33)  # Oren & Nayar 1994, eq. 30
+        b = 0.45 * sigma2 / (sigma2 + 0.09)
+        shape = a + b * np.where(s > 0.0, s / np.maximum(np.maximum(ci, co), 1e-300), 0.0)
+        diffuse = float(p["base"]) * _rgb(p["base_color"]) * shape[..., None] / math.pi
+        out = out + (1.0 - metalness) * (spec + throughput * diffuse)
+    return np.where(above[..., None], out, 0.0)
+
+
+def _rotated(v, angle):
+    """Coordinates in the frame whose tangent is turned by ``angle`` about the normal."""
+    c, s = math.cos(angle), math.sin(angle)
+    return np.stack([c * v[..., 0] + s * v[..., 1], -s * v[..., 0] + c * v[..., 1], v[..., 2]],
+                    axis=-1)
+
+
+def standard_surface_alphas(roughness, anisotropy):
+    """(alpha_x, alpha_y) of MaterialX's roughness_anisotropy: r^2 (clamped to [1e-4, 1]),
+    stretched by the aspect sqrt(1 - a) (a clamped to 0.98), alpha_x capped at 1."""
+    r2 = min(max(float(roughness) ** 2, 1e-4), 1.0)
+    a = float(anisotropy)
+    if a <= 0.0:
+        return r2, r2
+    aspect = math.sqrt(1.0 - min(a, SS_MAX_ANISOTROPY))
+    return min(r2 / aspect, 1.0), max(r2 * aspect, 1e-4)
+
+
+def artistic_ior(reflectivity, edge):
+    """(n, k) of Gulbrandsen 2014, "Artist Friendly Metallic Fresnel", JCGT 3(4), eqs. 4 and 5
+    (n between the indices of k = 0 and of edge 0, k from the normal reflectance), with the
+    reflectivity clamped to [0, 0.99] as MaterialX's artistic_ior does."""
+    r = np.clip(np.asarray(reflectivity, float), 0.0, SS_MAX_REFLECTIVITY)
+    sr = np.sqrt(r)
+    n = edge * (1.0 - r) / (1.0 + r) + (1.0 - edge) * (1.0 + sr) / (1.0 - sr)
+    k = np.sqrt(np.maximum((r * (n + 1.0) ** 2 - (n - 1.0) ** 2) / (1.0 - r), 0.0))
+    return n, k
+
+
+def artistic_ior_inverse(n, k):
+    """(reflectivity, edge) with :func:`artistic_ior` = (n, k): the normal reflectance of the
+    index and the position of n between Gulbrandsen's bounds (edge outside [0, 1] when n is
+    outside them)."""
+    n, k = np.asarray(n, float), np.asarray(k, float)
+    r = ((n - 1.0) ** 2 + k * k) / ((n + 1.0) ** 2 + k * k)
+    sr = np.sqrt(r)
+    n_min, n_max = (1.0 - r) / (1.0 + r), (1.0 + sr) / (1.0 - sr)
+    return r, (n_max - n) / (n_max - n_min)
+
+
+def conductor_fresnel(cos, n, k):
+    """Unpolarised Fresnel reflectance of a conductor of index n + i k (Born & Wolf 14.2, as in
+    PBR 3rd ed. 8.2.1, FrConductor), broadcasting over channels."""
+    c = np.clip(np.asarray(cos, float), 0.0, 1.0)
+    c2, s2 = c * c, 1.0 - c * c
+    t0 = n * n - k * k - s2
+    a2b2 = np.sqrt(t0 * t0 + 4.0 * n * n * k * k)
+    a = np.sqrt(np.maximum(0.5 * (a2b2 + t0), 0.0))
+    t1, t2 = a2b2 + c2, 2.0 * c * a
+    rs = (t1 - t2) / (t1 + t2)
+    t3, t4 = c2 * a2b2 + s2 * s2, t2 * s2
+    return 0.5 * (rs + rs * (t3 - t4) / (t3 + t4))
+
+
+def _ss_roughness(lobe, name, params, notes):
+    """specular_roughness, specular_anisotropy and specular_rotation inverting
+    :func:`standard_surface_alphas`: r^2 = sqrt(alpha_x alpha_y), a = 1 - alpha_y / alpha_x."""
+    ax = float(lobe["alpha"])
+    ay = float(lobe.get("alpha_y")) if lobe.get("alpha_y") is not None else ax
+    at, ab = max(ax, ay), min(ax, ay)
+    r2, a = math.sqrt(at * ab), 1.0 - ab / at
+    approximate = at > 1.0 or a > SS_MAX_ANISOTROPY
+    params["specular_roughness"] = min(math.sqrt(r2), 1.0)
+    if a > 0.0:
+        params["specular_anisotropy"] = min(a, SS_MAX_ANISOTROPY)
+    if ay > ax:
+        params["specular_rotation"] = 0.25  # the tangent turned by 90 degrees: along our y
+    notes.append(f"{name}: specular_roughness = (alpha_x alpha_y)^(1/4)"
+                 + (", specular_anisotropy = 1 - alpha_min / alpha_max" if a > 0 else "")
+                 + (", specular_rotation 0.25 (rougher along y)" if ay > ax else "")
+                 + " (MaterialX's roughness_anisotropy), " + (
+                     "approximate: alpha above 1 or anisotropy above 0.98 clamped"
+                     if approximate else "exact"))
+    if lobe.name == "beckmann":
+        notes.append(f"{name}: Beckmann normals -> GGX with the same alpha (Standard Surface is "
+                     "GGX only), approximate")
+    if lobe["masking"] == "separable":
+        notes.append(f"{name}: separable Smith masking -> MaterialX's height-correlated G2, "
+                     "approximate")
+
+
+def _ss_metal(lobe, name, params, notes):
+    """metalness 1: reflectivity and edge colour of the artistic_ior conductor. A conductor
+    Fresnel with ks = 1 maps exactly (Gulbrandsen's map inverted); otherwise base_color = ks F(1)
+    and the edge colour (of 101) closest to ks F over cos in [cos 85 deg, 1], relatively."""
+    ks = _rgb(lobe["ks"])
+    fresnel = lobe["fresnel"]
+    params.update(metalness=1.0, base=1.0, specular=1.0)
+    if fresnel.name == "conductor" and np.all(ks == 1.0):
+        n, k = np.broadcast_arrays(_rgb(fresnel["eta"]), _rgb(fresnel["k"]))
+        r, g = artistic_ior_inverse(n, k)
+        if np.all(r <= SS_MAX_REFLECTIVITY) and np.all((g >= 0.0) & (g <= 1.0)):
+            params.update(base_color=tuple(r), specular_color=tuple(g))
+            notes.append(f"{name}: metalness 1, base_color and specular_color = Gulbrandsen's "
+                         "reflectivity and edge tint of the conductor's index (artistic_ior "
+                         "inverted), exact")
+            return
+    cos = np.linspace(math.cos(math.radians(85.0)), 1.0, 33)
+    target = np.array([ks * _rgb(_fresnel_at(fresnel, c)) for c in cos])  # (33, 3)
+    r = np.clip(target[-1], 0.0, SS_MAX_REFLECTIVITY)
+    edges = np.linspace(0.0, 1.0, 101)
+    best = []
+    for ch in range(3):
+        n, k = artistic_ior(np.full(edges.shape, r[ch]), edges)
+        curves = conductor_fresnel(cos[:, None], n[None, :], k[None, :])  # (33, 101)
+        err = np.abs(curves - target[:, ch:ch + 1]) / np.maximum(target[:, ch:ch + 1], 1e-300)
+        best.append(edges[int(np.argmin(err.max(axis=0)))])
+    params.update(base_color=tuple(r), specular_color=tuple(best))
+    notes.append(f"{name}: metalness 1, base_color = ks F(1), specular_color = the edge tint "
+                 "(of 101) whose artistic_ior conductor Fresnel is closest to ks F, "
+                 "approximate")
+
+
+def _ss_specular(lobe, ior, weight, color):
+    """The Standard Surface specular inputs for one candidate."""
+    return {"specular_IOR": float(ior), "specular": float(weight), "specular_color": tuple(
+        float(c) for c in np.clip(color, 0.0, 1.0))}
+
+
+def _ss_candidates(lobe):
+    """(specular_IOR, specular, specular_color) candidates for a dielectric specular layer:
+    first the one closest to the lobe alone (a grey dielectric's eta with specular = 1 and
+    specular_color = ks; Fresnel none: F0 = 0.9999, specular = max ks; otherwise the same F0),
+    then one per F0 on a geometric grid, specular x specular_color x F0 = ks F(1)."""
+    ks = _rgb(lobe["ks"])
+    fresnel = lobe["fresnel"]
+    normal = ks * _rgb(_fresnel_at(fresnel, 1.0))
+    if fresnel.name == "dielectric" and _grey(fresnel["eta"]):
+        first = (float(np.atleast_1d(fresnel["eta"])[0]), 1.0, ks)
+    elif fresnel.name == "none":
+        top = float(ks.max())
+        first = (ior_of_f0(F0_NONE), min(top, 1.0), ks / top if top > 0.0 else ks)
+    else:
+        f0 = _rgb(_fresnel_at(fresnel, 1.0))
+        first = (ior_of_f0(float(f0.max())), 1.0, ks * f0 / max(float(f0.max()), 1e-300))
+    out = [first]
+    for f0 in np.geomspace(0.02, F0_NONE, 24):
+        weight = min(float(normal.max()) / f0, 1.0)
+        out.append((ior_of_f0(f0), weight, normal / max(weight * f0, 1e-300)))
+    return out
+
+
+def _ss_inputs(model):
+    """The standard_surface inputs (numpy values) and notes."""
+    from ..geometry import directions_from_degrees
+    from .export import GRID_PHI_O, GRID_THETA
+    check_materialx(model)
+    (dn, diffuse), (sn, specular) = _lobes(model)
+    params, notes = {}, []
+    if diffuse is not None:
+        params.update(base=1.0, base_color=tuple(_rgb(diffuse["albedo"])))
+        if diffuse.name == "oren-nayar":
+            sigma = float(diffuse["sigma"])
+            params["diffuse_roughness"] = min(sigma, 1.0)
+            notes.append(f"{dn}: base_color = albedo, diffuse_roughness = sigma (MaterialX's "
+                         "oren_nayar_diffuse_bsdf is eq. 30 of Oren & Nayar), " + (
+                             "approximate: sigma capped at 1" if sigma > 1.0 else "exact"))
+        else:
+            notes.append(f"{dn}: base_color = albedo, diffuse_roughness 0, exact")
+    if specular is None:
+        params.update(specular=0.0)
+        notes.append(f"{dn}: specular 0 (no specular layer), exact")
+        return params, notes
+    _ss_roughness(specular, sn, params, notes)
+    if diffuse is None and specular["fresnel"].name != "dielectric":
+        _ss_metal(specular, sn, params, notes)
+        return params, notes
+    params.update(metalness=0.0)
+    candidates = _ss_candidates(specular)
+    if diffuse is None:
+        ior, weight, color = candidates[0]
+        params.update(base=0.0, **_ss_specular(specular, ior, weight, color))
+        exact = _grey(specular["fresnel"]["eta"]) and np.all(np.asarray(color) <= 1.0)
+        notes.append(f"{sn}: base 0, specular_IOR = eta, specular_color = ks (the dielectric "
+                     "reflection alone), " + ("exact" if exact else "approximate"))
+        return params, notes
+    t, p = np.meshgrid(GRID_THETA, GRID_PHI_O, indexing="ij")
+    wo = directions_from_degrees(t.ravel(), p.ravel())
+    ax, ay = standard_surface_alphas(params["specular_roughness"],
+                                     params.get("specular_anisotropy", 0.0))
+    if params.get("specular_rotation"):
+        wo = _rotated(wo, 2.0 * math.pi * params["specular_rotation"])
+    rho = _rgb(diffuse["albedo"])
+    best = None
+    for ior, weight, color in candidates:
+        throughput = 1.0 - weight * specular_albedo(wo, ax, ay, modulated_ior(ior, 1.0), 48)
+        scale = 2.0 / max(throughput.min() + throughput.max(), 1e-300)
+        trial = {**params, **_ss_specular(specular, ior, weight, color),
+                 "base_color": tuple(np.clip(rho * scale, 0.0, 1.0))}
+        dev = relative_deviation(model.eval,
+                                 lambda wi, wo_: standard_surface_eval(trial, wi, wo_, 48))
+        if best is None or dev < best[0]:
+            best = (dev, trial, ior, rho * scale)
+    _, trial, ior, base = best
+    params.update(trial)
+    notes.append(f"{sn}: dielectric specular layer, specular_IOR {ior:.6g}, specular and "
+                 "specular_color = ks F(1) / F0: of the dielectric closest to the lobe and 24 "
+                 "F0 on a grid, the one that gives the whole material the smallest deviation, "
+                 "approximate")
+    notes.append(f"{dn}: base_color divided by the mean of the extreme 1 - specular E_spec(wo) "
+                 "weights of MaterialX's layer, approximate")
+    if np.any(base > 1.0):
+        notes.append(f"{dn}: base_color clamped to [0, 1], approximate")
+    return params, notes
+
+
+#: The shaders :func:`to_materialx` writes: (title, inputs in document order, evaluator).
+SHADERS = {NODE: ("OpenPBR Surface 1.1", DEFAULTS, lambda p, wi, wo: openpbr_eval(p, wi, wo)),
+           SS_NODE: ("Autodesk Standard Surface (as MaterialX's graph evaluates it)",
+                     SS_DEFAULTS, lambda p, wi, wo: standard_surface_eval(p, wi, wo))}
