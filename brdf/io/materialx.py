@@ -60,6 +60,7 @@ specular_color), which we invert; roughness r^2 = sqrt(alpha_x alpha_y), anisotr
 specular weight also scales E_spec in the layering, so a Fresnel-free lobe maps closely.
 """
 
+import functools
 import math
 from xml.sax.saxutils import quoteattr
 
@@ -260,6 +261,20 @@ def specular_albedo(wo, at, ab, eta, grid=None):
     if eta == 1.0:
         return np.zeros(wo.shape[:-1])
     n = grid or ALBEDO_GRID
+    flat = np.ascontiguousarray(wo, dtype=float).reshape(-1, 3)
+    if at == ab:  # isotropic: E depends on cos(theta_o) only
+        z = np.clip(flat[:, 2], -1.0, 1.0)
+        flat = np.stack([np.sqrt(1.0 - z * z), np.zeros_like(z), z], axis=-1)
+    unique, inverse = np.unique(flat, axis=0, return_inverse=True)
+    albedo = _albedo_of_unique(unique.tobytes(), float(at), float(ab), float(eta), n)
+    return albedo[inverse.ravel()].reshape(wo.shape[:-1])
+
+
+@functools.lru_cache(maxsize=64)
+def _albedo_of_unique(directions, at, ab, eta, n):
+    """specular_albedo's quadrature for distinct directions (given as float64 bytes); cached,
+    as a plastic's search asks for the same directions twice per candidate."""
+    unique = np.frombuffer(directions, float).reshape(-1, 3)
     u = (np.arange(n) + 0.5) / n
     u1, u2 = np.meshgrid(u, u, indexing="ij")
     radius = np.sqrt(u1 / (1.0 - u1)).ravel()  # slope radius of the unit GGX: P(r) = r^2/(1+r^2)
@@ -267,22 +282,18 @@ def specular_albedo(wo, at, ab, eta, grid=None):
     m = np.stack([-at * radius * np.cos(phi), -ab * radius * np.sin(phi),
                   np.ones_like(radius)], axis=-1)
     m /= np.linalg.norm(m, axis=-1, keepdims=True)
-    flat = wo.reshape(-1, 3)
-    if at == ab:  # isotropic: E depends on cos(theta_o) only
-        z = np.clip(flat[:, 2], -1.0, 1.0)
-        flat = np.stack([np.sqrt(1.0 - z * z), np.zeros_like(z), z], axis=-1)
-    unique, inverse = np.unique(flat, axis=0, return_inverse=True)
     albedo = np.zeros(len(unique))
-    for k, v in enumerate(unique):
-        if v[2] <= 0.0:
-            continue
-        vh = m @ v
-        wi = 2.0 * vh[:, None] * m - v
-        ok = (vh > 0.0) & (wi[:, 2] > 0.0)
-        g2 = _ggx_g2(wi[ok], v, at, ab)
-        albedo[k] = np.sum(dielectric_fresnel(vh[ok], eta) * g2 * vh[ok]
-                           / (v[2] * m[ok, 2])) / len(m)
-    return albedo[inverse.ravel()].reshape(wo.shape[:-1])
+    step = max(1, 400_000 // len(m))  # directions per chunk: arrays of about 400k pairs
+    for start in range(0, len(unique), step):
+        v = unique[start:start + step, None, :]  # (c, 1, 3)
+        vh = np.sum(v * m, axis=-1)  # (c, N)
+        wi = 2.0 * vh[..., None] * m - v
+        ok = (vh > 0.0) & (wi[..., 2] > 0.0) & (v[..., 2] > 0.0)
+        term = np.where(ok, dielectric_fresnel(vh, eta) * _ggx_g2(wi, np.broadcast_to(
+            v, wi.shape), at, ab) * vh / np.maximum(v[..., 2] * m[:, 2], 1e-300), 0.0)
+        albedo[start:start + step] = term.sum(axis=-1) / len(m)
+    albedo.flags.writeable = False
+    return albedo
 
 
 #: Fujii's constant in A = 1 / (1 + FUJII sigma) (spec 1.1, footnote to eq. FON_brdf).
@@ -893,7 +904,7 @@ def _ss_inputs(model):
     rho = _rgb(diffuse["albedo"])
     best = None
     for ior, weight, color in candidates:
-        throughput = 1.0 - weight * specular_albedo(wo, ax, ay, modulated_ior(ior, 1.0), 48)
+        throughput = 1.0 - weight * specular_albedo(wo, ax, ay, float(ior), 48)
         scale = 2.0 / max(throughput.min() + throughput.max(), 1e-300)
         trial = {**params, **_ss_specular(specular, ior, weight, color),
                  "base_color": tuple(np.clip(rho * scale, 0.0, 1.0))}
