@@ -351,15 +351,16 @@ def _lobes(model):
 
 
 def check_materialx(model):
-    """Raise the one-line error :func:`to_materialx` gives for a model without an OpenPBR
-    counterpart, converting nothing (``brdf-fit fit --export`` asks before it fits)."""
+    """Raise the one-line error :func:`to_materialx` gives for a model without a counterpart in
+    either shader, converting nothing (``brdf-fit fit --export`` asks before it fits)."""
     (dn, diffuse), (sn, specular) = _lobes(model)
     count = (diffuse is not None) + (specular is not None)
     if count != len(model.lobes):
         others = sorted({lobe.name for lobe in model.lobes} - set(DIFFUSE) - set(SPECULAR))
-        why = (f": {', '.join(others)} not in OpenPBR's base and specular layers" if others else
-               ": OpenPBR has one diffuse and one specular lobe (a second specular lobe would "
-               "be its coat, not written yet)")
+        why = (f": {', '.join(others)} not in the base and specular layers of OpenPBR or "
+               "Standard Surface" if others else
+               ": these shaders have one diffuse and one specular lobe (a second specular lobe "
+               "would be a coat, not written yet)")
         raise InputError(f"{model}: no materialx equivalent{why}; materialx export takes "
                          f"{', '.join(EXPORTABLE)}")
 
