@@ -1,18 +1,24 @@
 """``brdf-fit export`` and the ``--export`` option of ``brdf-fit fit``: a fitted model as a
-Mitsuba 3 BSDF or a glTF 2.0 material (the conversion is :func:`brdf.export`)."""
+Mitsuba 3 BSDF, a glTF 2.0 material or a MaterialX OpenPBR Surface (the conversion is
+:func:`brdf.export`)."""
 
 #: Formats and their file extensions, as in brdf.io.export.FORMATS (not imported here:
 #: --help stays fast; a test keeps the two equal).
-FORMATS = {"mitsuba": ".xml", "gltf": ".gltf"}
-FORMAT_HELP = ("mitsuba (a Mitsuba 3 scene holding <bsdf id=\"material\">) or gltf (a glTF 2.0 "
-               "file with one metallic-roughness material)")
+FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx",
+           "materialx-standard-surface": ".mtlx"}
+FORMAT_HELP = ("mitsuba (a Mitsuba 3 scene holding <bsdf id=\"material\">), gltf (a glTF 2.0 "
+               "file with one metallic-roughness material), materialx (a MaterialX document "
+               "with an open_pbr_surface and its surfacematerial) or "
+               "materialx-standard-surface (the same with a standard_surface)")
 
 
 def add_parser(sub, subcommand):
     """Register ``export`` with ``subcommand`` (cli.main's helper for common options)."""
-    p = subcommand(sub, "export", run, "write a fitted model for Mitsuba 3 or glTF 2.0",
-                   "Convert the model of a JSON fit report (or a model spec) to a Mitsuba 3 BSDF "
-                   "or a glTF 2.0 metallic-roughness material. The file says, line by line, what "
+    p = subcommand(sub, "export", run,
+                   "write a fitted model for Mitsuba 3, glTF 2.0 or MaterialX",
+                   "Convert the model of a JSON fit report (or a model spec) to a Mitsuba 3 "
+                   "BSDF, a glTF 2.0 metallic-roughness material or a MaterialX OpenPBR "
+                   "Surface. The file says, line by line, what "
                    "maps to what and which parts are exact or approximate, with the largest "
                    "relative difference between the two BRDFs. A model the format has no "
                    "counterpart for (phong, ward, oren-nayar, a glTF base colour above 1, ...) "
@@ -36,7 +42,8 @@ def add_fit_options(p):
     """``--export`` and ``--export-to`` of ``brdf-fit fit``."""
     p.add_argument("--export", choices=tuple(FORMATS), metavar="FORMAT",
                    help=f"also write the fitted model: {FORMAT_HELP}; to --export-to, or "
-                        "beside the -o report with the format's extension (.xml, .gltf); "
+                        "beside the -o report with the format's extension (.xml, .gltf, "
+                        ".mtlx); "
                         "with --json its summary is under the key \"export\"")
     p.add_argument("--export-to", metavar="PATH", help="where --export writes")
 
@@ -48,7 +55,7 @@ def export_path(args):
     from brdf.errors import InputError
     if not args.export:
         if args.export_to:
-            raise InputError("--export-to needs --export mitsuba|gltf")
+            raise InputError("--export-to needs --export FORMAT")
         return None
     if args.export_to:
         return args.export_to

@@ -60,10 +60,14 @@ from ..errors import InputError
 __all__ = ["export", "Export", "check_families", "FORMATS", "EXPORTABLE", "gltf_eval", "relative_deviation"]
 
 #: Formats and the extension of the file each writes.
-FORMATS = {"mitsuba": ".xml", "gltf": ".gltf"}
+FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx",
+           "materialx-standard-surface": ".mtlx"}
 #: Model families each format takes (sums of them where the format says).
 EXPORTABLE = {"mitsuba": ("lambert", "ggx", "beckmann", "mirror"),
-              "gltf": ("lambert", "ggx", "lambert + ggx")}
+              "gltf": ("lambert", "ggx", "lambert + ggx"),
+              "materialx": ("lambert", "oren-nayar", "ggx", "beckmann", "lambert + ggx",
+                            "lambert + beckmann", "oren-nayar + ggx", "oren-nayar + beckmann")}
+EXPORTABLE["materialx-standard-surface"] = EXPORTABLE["materialx"]
 #: Relative deviation below which a conversion is called exact (float32 renderers round at 1e-7).
 EXACT = 1e-9
 #: Direction grid of :func:`relative_deviation`, degrees: up to the fits' default cutoff.
@@ -167,7 +171,7 @@ def export(obj, format, path=None, force=False, max_error=None):
     model = _model_of(obj)
     if format not in FORMATS:
         raise InputError(f"unknown export format {format!r}; use one of {', '.join(FORMATS)}")
-    _refuse_custom(model, format)
+    check_families(model, format)
     if model.channels not in (1, 3):
         raise InputError(f"{model}: {model.channels} channels; {format} takes one channel or "
                          "RGB (spectral models have no wavelengths to convert)")
@@ -232,16 +236,26 @@ def check_families(model, format):
     (``brdf-fit fit --export`` asks before it fits)."""
     model = _model_of(model)
     _refuse_custom(model, format)
-    if format == "gltf":
-        _refuse_deltas(model)
+    if format != "mitsuba":
+        _refuse_deltas(model, format)
 
 
-def _refuse_deltas(model):
+def _refuse_deltas(model, format):
     deltas = sorted({lobe.name for lobe in model.lobes if lobe.delta})
     if deltas:
-        raise InputError(f"{model}: no gltf equivalent for the delta lobe(s) "
-                         f"{', '.join(deltas)} (glTF's materials are GGX-rough); export to "
+        raise InputError(f"{model}: no {format} equivalent for the delta lobe(s) "
+                         f"{', '.join(deltas)} ({format}'s materials are GGX-rough); export to "
                          "mitsuba, whose conductor holds them")
+
+
+def _materialx(model):
+    from .materialx import to_materialx  # brdf/io/materialx.py: OpenPBR Surface documents
+    return to_materialx(model)
+
+
+def _materialx_standard_surface(model):
+    from .materialx import to_materialx
+    return to_materialx(model, "standard_surface")
 
 
 def _refuse_custom(model, format):
@@ -734,9 +748,27 @@ def _closest_gltf(model, reason):
     return _gltf_document(model, material(best.x), notes, closest="glTF metallic-roughness")
 
 
+def _closest_materialx(model, reason, shader="open_pbr_surface"):
+    """The closest ``lambert + ggx`` (height-correlated masking, as OpenPBR's and Standard
+    Surface's specular lobes) mapped to the shader like any such sum."""
+    from .closest_material import fit_lambert_ggx
+    from .materialx import to_materialx
+    fitted = fit_lambert_ggx(model, masking="height-correlated")
+    family = f"lambert + ggx (height-correlated masking) as {shader}"
+    fmt = "materialx" if shader == "open_pbr_surface" else "materialx-standard-surface"
+    lead = [_closest_note(model, fmt, family, reason), f"closest: {fitted}"]
+    return to_materialx(fitted, shader, source=model, lead=lead, closest=family)
+
+
+def _closest_standard_surface(model, reason):
+    return _closest_materialx(model, reason, "standard_surface")
+
+
 #: Converters of the models each format holds, and of the closest material for the rest.
-_EXACT = {"mitsuba": _mitsuba, "gltf": _gltf}
-_CLOSEST = {"mitsuba": _closest_mitsuba, "gltf": _closest_gltf}
+_EXACT = {"mitsuba": _mitsuba, "gltf": _gltf, "materialx": _materialx,
+          "materialx-standard-surface": _materialx_standard_surface}
+_CLOSEST = {"mitsuba": _closest_mitsuba, "gltf": _closest_gltf, "materialx": _closest_materialx,
+            "materialx-standard-surface": _closest_standard_surface}
 
 
 def gltf_eval(material, wi, wo):
