@@ -175,9 +175,9 @@ def build_parser():
     p = _subcommand(sub, "convert", commands.convert, "convert a table to another format",
                     "Read a measured table (or a model: a spec or a JSON fit report) and write "
                     "it in the format the output's extension names (.binary MERL, .csv "
-                    "gonioreflectometer CSV, .npz native). Grid formats are filled by "
-                    "evaluating the input; a model can be written to .binary only.",
-                    "print a JSON summary")
+                    "gonioreflectometer CSV, .npz native, .bsdf RGL tensor). Grid formats are "
+                    "filled by evaluating the input; a model can be written to .binary and "
+                    ".bsdf only.", "print a JSON summary")
     p.add_argument("input", metavar="IN", help="the table file, model spec or fit report to "
                                               "read")
     _sample_option(p)

@@ -140,10 +140,11 @@ def _path_argument(path, what):
     return text
 
 
-def write(table, path, format=None, force=False):
+def write(table, path, format=None, force=False, **options):
     """Write ``table`` to ``path`` in the format its extension names (or ``format``).
 
     The file appears complete or not at all; an existing file is kept unless ``force``.
+    ``options`` go to the format's writer (e.g. ``samples=64`` for ``.bsdf``).
     """
     from ..models.base import Model
     from ..table import Table
@@ -161,8 +162,17 @@ def write(table, path, format=None, force=False):
         hint = ("; write saves measured tables: measure the model first (brdf.measure) or save "
                 "its spec (str(model)) or model.to_dict()" if hasattr(table, "to_dict") else "")
         raise InputError(f"write: table must be a brdf.Table, got {type(table).__name__}{hint}")
+    if options:
+        import inspect
+        accepted = [name for name, p in inspect.signature(module.write).parameters.items()
+                    if p.kind is inspect.Parameter.KEYWORD_ONLY]
+        unknown = sorted(set(options) - set(accepted))
+        if unknown:
+            raise InputError(f"write: format {module.FORMAT} takes no option "
+                             f"{', '.join(map(repr, unknown))}; its options: "
+                             f"{', '.join(accepted) or 'none'}")
     with atomic_output(path, force) as tmp:
-        module.write(table, tmp)
+        module.write(table, tmp, **options)
     return Path(path)
 
 
