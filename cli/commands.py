@@ -180,14 +180,21 @@ def info(args, out):
 
 
 def convert(args, out):
-    """Read a table and write it in the format the output's extension names."""
+    """Read a table (or a model: a spec or fit report) and write it in the format the output's
+    extension names (models only to formats that sample them, e.g. .binary and .bsdf)."""
     import brdf
-    table = read_table(args.input, args.sample)
-    path = brdf.write(table, args.output, force=args.force)
+    subject = load_subject(args.input, args.sample)
+    path = brdf.write(subject, args.output, force=args.force)
+    if not isinstance(subject, brdf.Table):
+        if args.json:
+            out.json({"input": args.input, "output": str(path), "model": str(subject)})
+        else:
+            out.text(f"wrote {path} (model {subject})")
+        return EXIT_OK
     if args.json:
-        out.json({"input": args.input, "output": str(path), "samples": len(table)})
+        out.json({"input": args.input, "output": str(path), "samples": len(subject)})
     else:
-        out.text(f"wrote {path} ({len(table):,} samples x {table.channels} channels)")
+        out.text(f"wrote {path} ({len(subject):,} samples x {subject.channels} channels)")
     return EXIT_OK
 
 

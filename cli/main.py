@@ -174,11 +174,13 @@ def build_parser():
     _sample_option(p)
 
     p = _subcommand(sub, "convert", commands.convert, "convert a table to another format",
-                    "Read a measured table and write it in the format the output's extension "
-                    "names (.binary MERL, .csv gonioreflectometer CSV, .npz native, .alta ALTA "
-                    "text). Grid formats are filled by interpolating the input.",
-                    "print a JSON summary")
-    p.add_argument("input", metavar="IN", help="the table to read")
+                    "Read a measured table (or a model: a spec or a JSON fit report) and write "
+                    "it in the format the output's extension names (.binary MERL, .csv "
+                    "gonioreflectometer CSV, .npz native, .alta ALTA text, .bsdf RGL tensor). Grid formats are "
+                    "filled by evaluating the input; a model can be written to .binary and "
+                    ".bsdf only.", "print a JSON summary")
+    p.add_argument("input", metavar="IN", help="the table file, model spec or fit report to "
+                                              "read")
     _sample_option(p)
     p.add_argument("output", metavar="OUT", help="the file to write")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")

@@ -63,6 +63,19 @@ def test_convert_round_trips_csv_through_npz(capsys, tmp_path):
     np.testing.assert_array_equal(a.angles, b.angles)
 
 
+def test_convert_writes_a_model_to_a_grid_format_only(capsys, tmp_path):
+    """IN may be a spec (or a fit report): formats that sample a model (MERL) take it, formats
+    of measured samples refuse it in one line."""
+    spec = "lambert(albedo=[0.5,0.4,0.3])"
+    status, out, _ = run(capsys, "convert", spec, str(tmp_path / "m.binary"))
+    assert status == 0 and "model lambert" in out
+    np.testing.assert_allclose(brdf.read(tmp_path / "m.binary").eval([0, 0, 1], [0, 0, 1]),
+                               np.array([0.5, 0.4, 0.3]) / np.pi, rtol=1e-3)
+    status, _, err = run(capsys, "convert", spec, str(tmp_path / "m.npz"))
+    assert status == 2
+    assert_one_error_line(err, "write: table must be a brdf.Table", "brdf.measure")
+
+
 @pytest.mark.slow
 def test_synth_merl_and_check_it(capsys, tmp_path):
     path = tmp_path / "gold.binary"

@@ -5,9 +5,11 @@ is unknown or shared by several formats; :func:`write` picks it from the output'
 writes atomically (a temporary file in the same folder, then a rename), never replacing an
 existing file unless ``force=True``. Each format is one module of this package defining
 ``FORMAT``, ``EXTENSIONS``, ``sniff(head)``, ``read(path)`` and, when it can store tables,
-``write(table, path)``; ``EXTENSION_FALLBACK = True`` marks the reader of a shared extension
-that reads (and reports the errors of) files of that extension whose content no format
-recognises.
+``write(table, path, **options)`` (keyword-only options, which :func:`write` passes on);
+``WRITES_MODELS = True`` marks writers that also take a model and evaluate it where their
+format needs values (MERL, RGL ``.bsdf``); ``EXTENSION_FALLBACK = True`` marks the reader of a
+shared extension that reads (and reports the errors of) files of that extension whose content
+no format recognises.
 
 >>> import brdf
 >>> sorted(brdf.io.formats())[:3]
@@ -144,7 +146,8 @@ def write(table, path, format=None, force=False, **options):
     """Write ``table`` to ``path`` in the format its extension names (or ``format``).
 
     The file appears complete or not at all; an existing file is kept unless ``force``.
-    ``options`` go to the format's writer (e.g. ``param=`` for ALTA files).
+    ``options`` go to the format's writer (e.g. ``param=`` for ALTA files, ``samples=64``
+    for ``.bsdf``).
     """
     from ..models.base import Model
     from ..table import Table

@@ -30,9 +30,11 @@ f_r cos(theta_o) = sample(s) D(h) / (4 sigma(wi)). :class:`RglTable` evaluates f
 cosine) from the measured f_r cos(theta_o) of both orders (wi, wo) and (wo, wi), so that it
 stays reciprocal and finite up to the horizon (see :meth:`RglTable.eval`).
 
-The format is read-only here (there is no ``write``): tables of other origins cannot be
-re-parameterised without the material's NDF, so the registry reports "format rgl-bsdf is
-read-only".
+:func:`write` stores any isotropic model or table that evaluates at arbitrary directions in
+this format: :mod:`brdf.io.adaptive_parameterization` extracts the NDF by power iteration
+(Dupuy et al. 2015), places the incident angles and warps the sample grid as the RGL files do,
+and the fields are written in the order and 8-byte alignment of the RGL files, so Mitsuba 3's
+``measured`` plugin and this reader read the result.
 """
 
 import math
@@ -49,11 +51,13 @@ from ..table import Table
 from . import read_bytes, source_of
 from .files import MAX_BYTES
 
-__all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "RglTable", "parse_tensor_file",
-           "warp_tables", "warp_forward"]
+__all__ = ["FORMAT", "EXTENSIONS", "sniff", "read", "write", "RglTable", "parse_tensor_file",
+           "tensor_file_bytes", "warp_tables", "warp_forward"]
 
 FORMAT = "rgl-bsdf"
 EXTENSIONS = (".bsdf",)
+#: write() takes a model too: it evaluates it wherever the parameterisation puts a sample
+WRITES_MODELS = True
 #: Most dimensions a field may have (numpy's arrays have at most 64).
 MAX_RANK = 32
 
@@ -212,6 +216,190 @@ def _check_layout(path, fields, header_end, size):
     if size > end:
         raise FormatError(path, f"byte {end}",
                           f"oversized: {size - end} bytes after the last field's data")
+
+
+# --- writing ------------------------------------------------------------------------------------
+
+#: Data type codes by numpy type (the inverse of DTYPES).
+_CODES = {np.dtype(name): code for code, name in DTYPES.items()}
+#: Field data start on multiples of this many bytes, as in the RGL files.
+_ALIGN = 8
+#: Rec. 709 luminance weights of linear sRGB: the ``luminance`` field of the RGL files is this
+#: combination of their ``rgb`` samples (to float32 rounding), clipped at 0.
+_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+#: A scattered table is written only when at least this fraction of a coarse grid of direction
+#: pairs lies within COVER_RADIUS (radians, in Table.coordinates) of one of its samples;
+#: elsewhere its interpolant can only copy the nearest sample.
+MIN_INSIDE = 0.5
+COVER_RADIUS = math.radians(15.0)
+
+
+def tensor_file_bytes(fields):
+    """The bytes of a tensor_file holding ``fields`` (name -> numpy array), in order, each
+    array's data starting at a multiple of 8 bytes (zero padding), little-endian."""
+    arrays = {name: np.ascontiguousarray(a) for name, a in fields.items()}
+    head = bytearray(_PREAMBLE.pack(MAGIC, 1, 0, len(arrays)))
+    offsets = {}
+    for name, a in arrays.items():
+        raw = name.encode("utf-8")
+        head += _NAME_LENGTH.pack(len(raw)) + raw
+        offsets[name] = len(head) + 3  # after the dimension count and the type code
+        head += _ENTRY.pack(a.ndim, _CODES[a.dtype.newbyteorder("=")], 0)
+        head += b"".join(_EXTENT.pack(e) for e in a.shape)
+    out = head
+    for name, a in arrays.items():
+        out += bytes(-len(out) % _ALIGN)
+        struct.pack_into("<Q", out, offsets[name], len(out))
+        out += a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes()
+    return bytes(out)
+
+
+def write(table, path, *, incident_angles=8, samples=32, vndf_resolution=128,
+          ndf_resolution=128, description=None):
+    """Write an isotropic model or table as an RGL ``.bsdf`` tensor file at ``path``.
+
+    The parameterisation is computed from the source's ``eval`` (NDF by power iteration,
+    projected area, incident angles, visible NDF and warped samples:
+    :mod:`brdf.io.adaptive_parameterization`); the fields are ``version`` (1, 0),
+    ``description``, ``phi_i`` (0), ``theta_i``, ``sigma``, ``ndf``, ``vndf``, ``luminance``,
+    ``rgb`` (or ``spectra`` and ``wavelengths``), ``jacobian`` (1) and ``valid``, in the RGL
+    files' order. Three channels are written as ``rgb``, one as grey ``rgb`` (the value in all
+    three), channels with wavelengths as ``spectra``. ``luminance`` is the Rec. 709 luminance
+    of the rgb samples (the mean of the spectral ones), clipped at 0 (it only steers importance
+    sampling). ``valid`` has one bit per sample, most significant bit first, set where the
+    sample's wo lies above the horizon by more than float32 rounding (the samples this reader
+    keeps; what the name says, though the RGL files disagree, see the module notes). The same
+    input gives the same bytes.
+
+    Parameters
+    ----------
+    table : brdf.Table or brdf.models.Model
+    incident_angles, samples, vndf_resolution, ndf_resolution : int
+        T incident angles, n x n samples per angle, the VNDF's resolution and the NDF's nodes
+        (defaults: those of the RGL files, 8, 32, 128, 128; about 660 KB for RGB).
+    description : str, optional
+        Stored text (default: the model's spec, or the table's description or name).
+
+    Raises
+    ------
+    brdf.errors.InputError
+        Anisotropic sources, delta lobes, channel counts other than 1 or 3 without
+        wavelengths, scattered tables that cannot be interpolated where the samples go, bad
+        resolutions, non-finite values.
+    """
+    from . import adaptive_parameterization
+    options = {"incident_angles": incident_angles, "samples": samples,
+               "vndf_resolution": vndf_resolution, "ndf_resolution": ndf_resolution}
+    for name, value in options.items():
+        adaptive_parameterization.resolution(name, value)
+    if not (description is None or isinstance(description, str)):
+        raise InputError(f"description must be a string, got {type(description).__name__}")
+    what, evaluate, channels, wavelengths, text = _writable(table)
+    text = text if description is None else description
+    _check_inside(table, what)
+    try:
+        p = adaptive_parameterization.build(evaluate, channels, horizon=_HORIZON, **options)
+    except InputError as e:
+        raise InputError(f"{what}: {e}") from None
+    stored = p.samples.astype(np.float32)
+    if wavelengths is None and channels == 1:
+        stored = np.repeat(stored, 3, axis=2)  # grey: the value in r, g and b
+    lum = (np.einsum("ptcyx,c->ptyx", stored.astype(np.float64), _LUMINANCE)
+           if wavelengths is None else stored.astype(np.float64).mean(axis=2))
+    lum = np.maximum(lum, 0.0)
+    flat = lum.reshape(len(p.theta_i), -1)
+    # a black slice has nothing to steer sampling by: uniform, so its CDF stays defined
+    flat[~(flat.sum(axis=1) > 0.0)] = 1.0
+    fields = {"version": np.array([1, 0], dtype=np.uint32),
+              "description": np.frombuffer(text.encode("utf-8"), dtype=np.uint8),
+              "phi_i": np.zeros(1, dtype=np.float32), "theta_i": p.theta_i,
+              "sigma": p.sigma, "ndf": p.ndf, "vndf": p.vndf,
+              "luminance": flat.reshape(lum.shape).astype(np.float32)}
+    if wavelengths is None:
+        fields["rgb"] = stored
+    else:
+        fields["spectra"] = stored
+        fields["wavelengths"] = np.asarray(wavelengths, dtype=np.float32)
+    fields["jacobian"] = np.ones(1, dtype=np.uint8)
+    fields["valid"] = np.packbits(p.above.reshape(-1))  # most significant bit first
+    with open(path, "wb") as f:
+        f.write(tensor_file_bytes(fields))
+
+
+def _writable(source):
+    """``(what, evaluate, channels, wavelengths, description)`` of a model or table the format
+    can hold (``what`` names it in messages), else :class:`InputError` saying why not."""
+    from ..models.base import Model
+    what = f"{source}"
+    if isinstance(source, Model):
+        deltas = [lobe.name for lobe in source.lobes if lobe.delta]
+        if deltas:
+            raise InputError(f"{what}: delta lobes ({', '.join(deltas)}) have no finite BRDF to "
+                             f"tabulate; the .bsdf format holds diffuse and glossy reflection: "
+                             f"write the model without them")
+        if source.is_anisotropic:
+            raise InputError(f"{what} is anisotropic; the .bsdf writer stores isotropic "
+                             f"materials (one incident azimuth): make alpha_y (nv) equal to "
+                             f"alpha (nu)")
+        wavelengths, default = None, what
+    elif isinstance(source, Table):
+        what = f"table {source.name}"
+        if not source.isotropic:
+            raise InputError(f"{what} is anisotropic; the .bsdf writer stores isotropic "
+                             f"materials (one incident azimuth)")
+        wavelengths = source.wavelengths
+        default = source.metadata.get("description") or source.name
+        if not isinstance(default, str):
+            default = source.name
+    else:
+        raise InputError(f"write: expected a brdf.Table or a model, got "
+                         f"{type(source).__name__}")
+    channels = source.channels
+    if wavelengths is None and channels not in (1, 3):
+        raise InputError(f"{what} has {channels} channels without wavelengths; the .bsdf format "
+                         f"holds rgb (3 channels), grey (1, written as rgb) or spectra with "
+                         f"wavelengths")
+
+    def evaluate(wi, wo):
+        try:
+            return source.eval(wi, wo)
+        except InputError as e:
+            if isinstance(source, Model):
+                raise
+            raise InputError(f"cannot interpolate its samples where the .bsdf parameterisation "
+                             f"needs values ({e}); fit a model to it (brdf-fit fit) and write "
+                             f"the model") from None
+
+    return what, evaluate, channels, wavelengths, default
+
+
+def _check_inside(source, what):
+    """Refuse a table whose samples leave most of the parameterisation's domain far from any
+    sample, where its generic interpolant can only copy the nearest one (sparse, scattered or
+    in-plane scans): at the nodes of a coarse grid of (theta_i, theta_o, phi) up to 80
+    degrees, a pair counts as covered when a sample of either order (reciprocity) lies within
+    :data:`COVER_RADIUS` in the table's interpolation coordinates (:meth:`Table.coordinates`).
+    Tables with their own lookup (MERL, RGL) cover their domain by construction."""
+    if not isinstance(source, Table) or type(source).eval_one_sided is not \
+            Table.eval_one_sided:
+        return
+    from scipy.spatial import cKDTree
+    theta = np.radians(np.arange(0.0, 81.0, 10.0))
+    ti, to, phi = (a.reshape(-1) for a in np.meshgrid(theta, theta, np.radians(
+        np.arange(0.0, 181.0, 30.0)), indexing="ij"))
+    wi = spherical_to_cartesian(ti, 0.0)
+    wo = spherical_to_cartesian(to, phi)
+    measured = ~np.isnan(source.values).all(axis=1)
+    points = np.concatenate([source.coordinates(source.wi[measured], source.wo[measured]),
+                             source.coordinates(source.wo[measured], source.wi[measured])])
+    distance = cKDTree(points).query(source.coordinates(wi, wo))[0]
+    share = float(np.mean(distance <= COVER_RADIUS))
+    if share < MIN_INSIDE:
+        raise InputError(f"{what}: only {share:.0%} of the direction pairs the .bsdf "
+                         f"parameterisation samples lie within {math.degrees(COVER_RADIUS):g} "
+                         f"degrees of a measured sample (the rest would copy the nearest one); "
+                         f"fit a model to it (brdf-fit fit) and write the model, or measure it "
+                         f"more densely")
 
 
 # --- the material's arrays ----------------------------------------------------------------------
