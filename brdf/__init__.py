@@ -56,12 +56,12 @@ def compare(data, specs, **options):
     return _compare(data, specs, **options)
 
 
-def export(model, format, path=None, force=False, max_error=None):
+def export(model, format, path=None, force=False, max_error=None, measured=False):
     """Write a model or fit (result, report, or report path) as a Mitsuba 3 BSDF or a glTF 2.0
     material, stating what is exact and what approximate (a model the format has no
     counterpart for becomes the closest material of its family); see `brdf.io.export`."""
     from .io.export import export as _export
-    return _export(model, format, path, force, max_error)
+    return _export(model, format, path, force, max_error, measured)
 
 
 def load_report(path):

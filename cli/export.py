@@ -33,6 +33,9 @@ def add_parser(sub, subcommand):
     p.add_argument("--exact", action="store_true",
                    help="write only an exact conversion: exit status 1, nothing written, when "
                         "it would be approximate")
+    p.add_argument("--measured", action="store_true",
+                   help="mitsuba: tabulate the model as an RGL tensor beside PATH (.bsdf) and "
+                        "write a measured BSDF reading it (any isotropic model)")
     p.add_argument("--max-error", type=float, default=None, metavar="E",
                    help="largest relative RMS difference of a closest material that is "
                         "written (default 0.75)")
@@ -74,6 +77,9 @@ def run(args, out):
     if not isinstance(model, brdf.models.Model):
         raise brdf.InputError(f"{args.subject}: a measured table; export takes a fit report or "
                               "a model spec (fit the table first: brdf-fit fit ... -o)")
+    if args.measured:
+        from pathlib import Path
+        refuse_existing(args, str(Path(args.output).with_suffix(".bsdf")))
     if args.exact:
         result = brdf.export(model, args.format, max_error=args.max_error)
         if not result.exact:
@@ -84,7 +90,7 @@ def run(args, out):
                          "and --exact was given")
             return EXIT_CHECK_FAILED
     result = brdf.export(model, args.format, args.output, force=args.force,
-                         max_error=args.max_error)
+                         max_error=args.max_error, measured=args.measured)
     report(result, out, args.json)
     return EXIT_OK
 

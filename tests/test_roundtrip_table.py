@@ -9,6 +9,7 @@ and 99th percentile; the test recomputes every row and fails when a figure moved
 ``python tests/test_roundtrip_table.py`` prints the table to paste into the page.
 """
 
+import hashlib
 import math
 import re
 import sys
@@ -87,6 +88,30 @@ def to_gltf(spec):
     return case
 
 
+def to_tensor_in_mitsuba(spec):
+    """A model written as an RGL tensor, evaluated by Mitsuba's measured plugin."""
+    def case(tmp):
+        model = brdf.parse(spec)
+        path = brdf.write(model, tmp / f"{hashlib.sha1(spec.encode()).hexdigest()[:8]}.bsdf")
+        text = (f'<scene><bsdf id="material" type="measured"><string name="filename" '
+                f'value="{path}"/></bsdf></scene>')
+        wi, wo = pairs()
+        return relative(model.eval(wi, wo), mitsuba_f(text, wi, wo))
+    return case
+
+
+def to_materialx(spec, format):
+    def case(tmp):
+        from brdf.io import materialx
+        model = brdf.parse(spec)
+        evaluate = (materialx.openpbr_eval if format == "materialx"
+                    else materialx.standard_surface_eval)
+        params = brdf.export(model, format).equivalent
+        wi, wo = pairs()
+        return relative(model.eval(wi, wo), evaluate(params, wi, wo))
+    return case
+
+
 def model_through(spec, suffix):
     """A model written in a format that resamples it (MERL's grid), read back, evaluated."""
     def case(tmp):
@@ -125,6 +150,14 @@ CASES = [
      to_gltf("lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=0.2, alpha=0.3, "
              "masking=height-correlated)")),
     (f"`{PAPER_FIT}`", "glTF 2.0 (closest)", "glTF's BRDF (Appendix B)", to_gltf(PAPER_FIT)),
+    (f"`{SYNTHETIC}`", "MaterialX OpenPBR Surface", "OpenPBR's BRDF (base, specular)",
+     to_materialx(SYNTHETIC, "materialx")),
+    (f"`{SYNTHETIC}`", "MaterialX Standard Surface", "MaterialX's standard_surface graph",
+     to_materialx(SYNTHETIC, "materialx-standard-surface")),
+    (f"`{SYNTHETIC}`", "RGL tensor `.bsdf`", "Mitsuba `measured` eval",
+     to_tensor_in_mitsuba(SYNTHETIC)),
+    ("`beckmann(alpha=0.2)`", "RGL tensor `.bsdf`", "Mitsuba `measured` eval",
+     to_tensor_in_mitsuba("beckmann(alpha=0.2)")),
     (f"`{SYNTHETIC}`", "MERL `.binary`", "our reader (trilinear)",
      model_through(SYNTHETIC, ".binary")),
     ("`paper_white_rgb.bsdf` (RGL)", "native `.npz`", "our reader", table_through(".npz")),

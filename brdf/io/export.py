@@ -57,7 +57,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["export", "Export", "check_families", "FORMATS", "EXPORTABLE", "gltf_eval", "relative_deviation"]
+__all__ = ["export", "measured_mitsuba", "Export", "NoCounterpart", "check_families", "FORMATS",
+           "EXPORTABLE", "gltf_eval", "relative_deviation"]
 
 #: Formats and the extension of the file each writes.
 FORMATS = {"mitsuba": ".xml", "gltf": ".gltf", "materialx": ".mtlx",
@@ -134,7 +135,7 @@ class Export:
         return "\n".join([head, *(f"  - {n}" for n in self.notes)])
 
 
-def export(obj, format, path=None, force=False, max_error=None):
+def export(obj, format, path=None, force=False, max_error=None, measured=False):
     """Convert a model to a Mitsuba 3 BSDF or a glTF 2.0 material, and write it.
 
     A model the format has no counterpart for (a family it lacks, or parameters beyond its
@@ -155,6 +156,10 @@ def export(obj, format, path=None, force=False, max_error=None):
     max_error : float, optional
         Largest relative RMS difference of a closest material that is written (default
         :data:`brdf.io.closest_material.MAX_ERROR`); beyond it the model is refused.
+    measured : bool
+        Mitsuba only: write the model as an RGL tensor beside ``path`` (same name, ``.bsdf``)
+        and a ``<bsdf type="measured">`` that reads it, for any isotropic model, whatever its
+        families (:func:`measured_mitsuba`).
 
     Returns
     -------
@@ -177,6 +182,11 @@ def export(obj, format, path=None, force=False, max_error=None):
                          "RGB (spectral models have no wavelengths to convert)")
     from .closest_material import MAX_ERROR
     limit = MAX_ERROR if max_error is None else _positive(max_error, "max_error")
+    if measured:
+        if format != "mitsuba":
+            raise InputError(f"measured=True writes Mitsuba's measured plugin; {format} has "
+                             "no tabulated material")
+        return measured_mitsuba(model, path, force)
     try:
         result = _EXACT[format](model)
     except NoCounterpart as reason:
@@ -207,11 +217,51 @@ def _unreasonable(model, format, result, limit):
     from .closest_material import smooth_part
     smooth, _ = smooth_part(model)
     holds = ("; Mitsuba 3's measured plugin reads any isotropic model as an RGL tensor "
-             "(brdf.write(model, 'material.bsdf'))" if smooth is not None
-             and not model.is_anisotropic else "")
+             "(export measured=True, brdf-fit export --measured)" if smooth is not None
+             and not model.is_anisotropic and not any(lobe.delta for lobe in model.lobes)
+             else "")
     return InputError(f"{model}: no reasonable {format} counterpart: the closest {result.closest} "
                       f"differs by {result.error:.3g} relative RMS (more than max_error "
                       f"{limit:.3g}){holds}")
+
+
+def measured_mitsuba(model, path, force=False):
+    """A Mitsuba file whose ``<bsdf id="material" type="measured">`` reads ``model`` tabulated
+    as an RGL tensor (Dupuy & Jakob 2018), written beside ``path`` with the suffix ``.bsdf``
+    (:func:`brdf.io.rgl_bsdf.write`). Any isotropic model without delta lobes has one; the
+    figures compare our reader of the tensor, which evaluates like Mitsuba's plugin, with the
+    model."""
+    from . import atomic_output, read, write
+    model = _model_of(model)
+    if path is None:
+        raise InputError("measured=True writes a tensor file beside the Mitsuba file: give "
+                         "the path")
+    xml_path = Path(path)
+    tensor = xml_path.with_suffix(".bsdf")
+    if xml_path.suffix.lower() == ".bsdf":
+        raise InputError(f"{path}: the Mitsuba file needs another extension (.xml); the "
+                         "tensor goes beside it as .bsdf")
+    for target in (xml_path, tensor):
+        if target.exists() and not force:
+            from ..errors import OutputError
+            raise OutputError(f"{target}: exists; pass --force (force=True) to replace it")
+    write(model, tensor, force=force)
+    table = read(tensor)
+    deviation = relative_deviation(model.eval, table.eval)
+    error = _rms(model, table.eval)
+    notes = (f"{model} -> an RGL tensor ({tensor.name}, Dupuy & Jakob 2018) read by Mitsuba's "
+             "measured plugin: tabulated, approximate",)
+    comment = [f"brdf {_version()} export of {model}",
+               f"APPROXIMATE: {_figures(deviation, error)}", *notes]
+    text = ('<?xml version="1.0" encoding="utf-8"?>\n<!--\n'
+            + "".join(f"  {_xml_comment(line)}\n" for line in comment)
+            + f'-->\n<scene version="{MITSUBA_VERSION}">\n    <bsdf id="{MITSUBA_ID}" '
+            f'type="measured"><string name="filename" value="{tensor.name}"/></bsdf>\n'
+            "</scene>\n")
+    with atomic_output(xml_path, force) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Export("mitsuba", text, str(model), False, notes, deviation, table, path=str(path),
+                  error=error, closest="RGL tensor")
 
 
 def _model_of(obj):

@@ -414,3 +414,60 @@ def test_cli_fit_export_to_a_path_reports_it_under_export_in_json(capsys, report
     d = json.loads(out)
     assert d["export"]["path"] == str(target) and d["export"]["format"] == "gltf"
     assert json.loads(target.read_text())["materials"][0]["extras"]["brdf"]["spec"] == d["spec"]
+
+
+# --- Mitsuba's measured plugin ------------------------------------------------------------------
+
+def test_measured_export_writes_a_tensor_that_mitsuba_reads_like_the_model(mi, tmp_path):
+    """A retro-reflective Lafortune lobe has no reasonable roughconductor: as an RGL tensor
+    read by Mitsuba's measured plugin it does, within the tensor's stated figures."""
+    spec = "lambert(albedo=0.3) + lafortune(cx=0.8, cy=0.8, cz=0.5, n=10)"
+    path = tmp_path / "retro.xml"
+    result = brdf.export(spec, "mitsuba", path, measured=True)
+    tensor = tmp_path / "retro.bsdf"
+    assert tensor.exists() and result.closest == "RGL tensor" and not result.exact
+    assert 'type="measured"' in result.text and 'value="retro.bsdf"' in result.text
+    mi.set_variant("scalar_rgb")
+    scene = mi.load_file(str(path))  # the file name resolves beside the scene
+    assert scene is not None
+    rng = np.random.default_rng(3)
+    wi, wo = upper_directions(rng, 200), upper_directions(rng, 200)
+    keep = (wi[:, 2] > 0.2) & (wo[:, 2] > 0.2)
+    wi, wo = wi[keep], wo[keep]
+    element = ET.fromstring(result.text).find("bsdf")
+    element.set("version", "3.0.0")
+    element.find("string").set("value", str(tensor))
+    bsdf = mi.load_string(ET.tostring(element, encoding="unicode"))
+    theirs = mitsuba_f(mi, bsdf, wi, wo)
+    ours = np.broadcast_to(brdf.parse(spec).eval(wi, wo), theirs.shape)
+    relative = np.abs(theirs - ours) / ours
+    # the tensor's resolution (tests/io/test_rgl_bsdf_write.py states its figures); our reader
+    # averages both orders of a pair, Mitsuba's plugin reads one, so each is held to the model
+    assert np.median(relative) < 0.02 and np.percentile(relative, 99) < 0.2
+    assert 0.0 < result.error < 0.1
+
+
+def test_measured_export_refuses_what_a_tensor_cannot_hold_and_keeps_files(tmp_path):
+    with pytest.raises(InputError, match="anisotropic"):
+        brdf.export("ggx(alpha=0.1, alpha_y=0.3)", "mitsuba", tmp_path / "a.xml", measured=True)
+    with pytest.raises(InputError, match="give the path"):
+        brdf.export("lambert", "mitsuba", measured=True)
+    with pytest.raises(InputError, match="Mitsuba"):
+        brdf.export("lambert", "gltf", tmp_path / "a.gltf", measured=True)
+    (tmp_path / "b.bsdf").write_text("mine")
+    with pytest.raises(OutputError, match="exists"):
+        brdf.export("lambert", "mitsuba", tmp_path / "b.xml", measured=True)
+    assert (tmp_path / "b.bsdf").read_text() == "mine" and not (tmp_path / "b.xml").exists()
+
+
+def test_cli_export_measured_and_the_refusal_that_points_to_it(capsys, tmp_path):
+    spec = "lafortune(cx=0.8, cy=0.8, cz=0.5, n=10)"
+    status, _, err = run(capsys, "export", spec, "--format", "mitsuba", "-o",
+                         str(tmp_path / "r.xml"))
+    assert status == 2
+    assert_one_error_line(without_progress(err), "no reasonable mitsuba counterpart",
+                          "--measured")
+    status, out, err = run(capsys, "export", spec, "--format", "mitsuba", "-o",
+                           str(tmp_path / "r.xml"), "--measured")
+    assert status == 0 and "RGL tensor" in out
+    assert (tmp_path / "r.xml").exists() and (tmp_path / "r.bsdf").exists()
