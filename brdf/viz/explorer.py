@@ -1,0 +1,472 @@
+"""The interactive BRDF explorer: a local web app (Panel and Bokeh) with sliders for every
+parameter and linked views that follow them live, for several materials at once.
+
+Views: the 3-D lobe (rotate and zoom in the browser), the in-plane polar plot, the directional
+albedo against theta_i with the energy limit 1, and a lit sphere under a key light and an
+environment (direct lighting from the model's kernels). The arrays behind them come from
+:mod:`brdf.viz.view_data`; this module only lays them out and wires the widgets.
+
+Panel, Bokeh and their JavaScript are the optional extra ``brdf[explore]``; the page loads
+every script from the local server (nothing is downloaded at run time).
+
+>>> import brdf
+>>> from brdf.viz.explorer import Explorer
+>>> app = Explorer(["lambert(albedo=0.5) + ggx(alpha=0.2)"])   # doctest: +SKIP
+"""
+
+import math
+import os
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import BRDFError, InputError
+from . import view_data
+from .samples import incidence, is_table
+
+__all__ = ["Explorer", "explore", "material_from", "EXTRA"]
+
+#: The install command of the optional dependencies, said when they are missing.
+EXTRA = 'pip install "brdf[explore]"'
+#: Colours of the materials, in the order they are added (matplotlib's tab10, as the plots).
+COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+           "#7f7f7f", "#bcbd22", "#17becf")
+#: Incidence angles of the albedo curve, degrees.
+ALBEDO_THETA = np.linspace(0.0, 89.0, 46)
+#: Polar steps of the 3-D lobe (azimuth steps are twice as many).
+LOBE_RESOLUTION = 24
+#: Pixels across each lit-sphere preview.
+SPHERE_SIZE = 128
+#: Screen pixels across each lit sphere.
+SPHERE_PIXELS = 200
+
+
+def require_panel():
+    """Import Panel, or raise :class:`~brdf.errors.InputError` saying how to install it."""
+    try:
+        import bokeh  # noqa: F401
+        import panel
+    except ImportError:
+        raise InputError(f"the explorer needs Panel and Bokeh: {EXTRA}") from None
+    return panel
+
+
+def material_from(subject):
+    """A model or table from what the explorer is given: a model, a table, the path of a JSON
+    fit report or of a measured file, or a model spec."""
+    import brdf
+    if not isinstance(subject, (str, os.PathLike)):
+        if not (hasattr(subject, "eval") and hasattr(subject, "albedo")):
+            raise InputError(f"{subject!r}: expected a model, a table, a spec or a path")
+        return subject
+    text = os.fspath(subject).strip()
+    if text.lower().endswith(".json"):
+        return brdf.load_report(text).model
+    if os.path.exists(text):
+        return brdf.read(text)
+    return brdf.parse(text)
+
+
+@dataclass
+class Material:
+    """One material in the explorer: what it draws, its label and colour, whether it shows."""
+
+    model: object
+    label: str
+    colour: str
+    visible: bool = True
+    solo: bool = False
+    widgets: list = field(default_factory=list)
+
+
+def _message(exc):
+    """The one line the page shows for an error (the library's own message when it is one)."""
+    if isinstance(exc, BRDFError):
+        return " ".join(str(exc).split())
+    if isinstance(exc, OSError):
+        return f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc)
+    return f"internal error: {type(exc).__name__}: {exc}"
+
+
+class Explorer:
+    """The explorer's state, widgets and views.
+
+    Parameters
+    ----------
+    materials : iterable
+        Models, tables, specs, fit-report or measured-file paths (see :func:`material_from`).
+    theta_i, phi_i : float
+        The incident direction, degrees.
+
+    Attributes
+    ----------
+    layout : panel.viewable.Viewable
+        The page (serve it, or show it in a notebook).
+    timings : dict
+        Seconds each view took to recompute in the last update, and ``"total"``.
+    """
+
+    def __init__(self, materials=(), *, theta_i=30.0, phi_i=0.0):
+        pn = require_panel()
+        self.materials = []
+        self.theta_i, self.phi_i = float(theta_i), float(phi_i)
+        self.cosine, self.log = True, False
+        self.timings = {}
+        self._build(pn)
+        for subject in materials:
+            self.add(subject)
+        self.update()
+
+    # -- materials --------------------------------------------------------------------------
+
+    def add(self, subject):
+        """Add a material (see :func:`material_from`); errors propagate."""
+        model = material_from(subject)
+        colour = COLOURS[len(self.materials) % len(COLOURS)]
+        label = str(subject) if is_table(model) else str(model)
+        material = Material(model, label, colour)
+        self.materials.append(material)
+        self._material_card(material)
+        self._add_glyphs(material)
+        return material
+
+    def add_from_text(self, text):
+        """Add the material ``text`` names, as the page's text box does: an error shows its one
+        line in the page instead of raising. True when the material was added."""
+        try:
+            self.add(text)
+        except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
+            self.error.object = _message(exc)
+            self.error.visible = True
+            return False
+        self.error.object, self.error.visible = "", False
+        self.update()
+        return True
+
+    def _add_from_page(self):
+        """The text box's material, added on the document's next tick: new plot glyphs must be
+        made while the server holds the document's lock, which a widget's event does not."""
+        text, doc = self.spec_input.value, self._pn.state.curdoc
+        if doc is not None and doc.session_context is not None:
+            doc.add_next_tick_callback(lambda: self.add_from_text(text))
+        else:
+            self.add_from_text(text)
+
+    def set_parameter(self, material, name, value):
+        """Set the flat-named parameter ``name`` of material number ``material`` and update."""
+        m = self.materials[material]
+        m.model = view_data.with_parameter(m.model, name, value)
+        m.label = str(m.model)
+        self.update()
+
+    def _shown(self):
+        solo = any(m.solo for m in self.materials)
+        return [m for m in self.materials if (m.solo if solo else m.visible)]
+
+    # -- computation ------------------------------------------------------------------------
+
+    def view_data(self, material):
+        """The arrays every view draws for ``material`` at the current incidence (timed)."""
+        wi = incidence(self.theta_i, self.phi_i)
+        model, out, times = material.model, {}, {}
+        start = time.perf_counter()
+        out["lobe"] = view_data.lobe_mesh(model, wi, cosine=self.cosine, log=self.log,
+                                          resolution=LOBE_RESOLUTION)
+        times["lobe"] = time.perf_counter() - start
+        start = time.perf_counter()
+        out["polar"] = view_data.polar_curve(model, wi, cosine=self.cosine)
+        times["polar"] = time.perf_counter() - start
+        start = time.perf_counter()
+        out["albedo"] = view_data.albedo_curve(model, ALBEDO_THETA, self.phi_i)
+        times["albedo"] = time.perf_counter() - start
+        start = time.perf_counter()
+        out["sphere"] = view_data.sphere_preview(model, SPHERE_SIZE)
+        times["sphere"] = time.perf_counter() - start
+        return out, times
+
+    def update(self):
+        """Recompute every view of every material and push the arrays to the page."""
+        from .._threads import serial_below
+        start = time.perf_counter()
+        timings = {}
+        shown = self._shown()
+        data = {}
+        # every view evaluates a few thousand directions: one thread does that faster than
+        # waking numba's pool, and far faster on a busy machine
+        with serial_below(SPHERE_SIZE ** 2):
+            for m in self.materials:
+                if m in shown:
+                    data[id(m)], times = self.view_data(m)
+                    for key, value in times.items():
+                        timings[key] = timings.get(key, 0.0) + value
+        self._draw(data, shown)
+        timings["total"] = time.perf_counter() - start
+        self.timings = timings
+
+    # -- the page ---------------------------------------------------------------------------
+
+    def _build(self, pn):
+        from bokeh.models import ColumnDataSource, Span
+        from bokeh.plotting import figure
+        from .lobe_canvas import lobe_canvas_class
+        pn.extension()
+        self._pn = pn
+        self.theta_slider = pn.widgets.FloatSlider(label="theta_i [deg]", start=0.0, end=89.0,
+                                                   step=0.5, value=self.theta_i)
+        self.phi_slider = pn.widgets.FloatSlider(label="phi_i [deg]", start=0.0, end=360.0,
+                                                 step=1.0, value=self.phi_i)
+        self.theta_slider.param.watch(lambda e: self._incidence(theta=e.new), "value")
+        self.phi_slider.param.watch(lambda e: self._incidence(phi=e.new), "value")
+        self.cosine_box = pn.widgets.Checkbox(label="f cos(theta_o)", value=self.cosine)
+        self.log_box = pn.widgets.Checkbox(label="log radius", value=self.log)
+        self.cosine_box.param.watch(lambda e: self._option(cosine=e.new), "value")
+        self.log_box.param.watch(lambda e: self._option(log=e.new), "value")
+        self.spec_input = pn.widgets.TextInput(label="add a material",
+                                               placeholder="spec, fit report or measured file")
+        self.add_button = pn.widgets.Button(label="add", color="primary")
+        self.add_button.on_click(lambda e: self._add_from_page())
+        self.spec_input.param.watch(lambda e: self._add_from_page(), "enter_pressed")
+        self.error = pn.pane.Alert("", alert_type="danger", visible=False,
+                                   css_classes=["brdf-error"])
+        self.cards = pn.Column(sizing_mode="stretch_width")
+
+        self.polar = figure(title="in-plane: r = f cos(theta_o)", width=420, height=260,
+                            match_aspect=True, x_range=(-1.1, 1.1), y_range=(-0.05, 1.1),
+                            tools="pan,wheel_zoom,reset,save", name="polar")
+        self.polar.xaxis.axis_label = "incident side  <  theta_o  >  specular side"
+        self.albedo = figure(title="directional albedo", width=420, height=260,
+                             x_range=(0, 90), y_range=(0, 1.08),
+                             tools="pan,wheel_zoom,reset,save", name="albedo")
+        self.albedo.xaxis.axis_label = "theta_i [deg]"
+        self.albedo.yaxis.axis_label = "a(theta_i)"
+        self.albedo.add_layout(Span(location=1.0, dimension="width", line_dash="dashed",
+                                    line_color="black"))
+        self.albedo_marker = Span(location=self.theta_i, dimension="height",
+                                  line_color="#888888", line_dash="dotted")
+        self.albedo.add_layout(self.albedo_marker)
+        self.incident_source = ColumnDataSource({"x": [0.0, 0.0], "y": [0.0, 0.0]},
+                                                name="incident")
+        self.polar.line("x", "y", source=self.incident_source, line_dash="dotted",
+                        line_color="#e07b00")
+        t = np.linspace(-math.pi / 2, math.pi / 2, 91)
+        self.polar.line(np.sin(t), np.cos(t), line_color="#cccccc")
+        self.sphere = figure(title="lit sphere (direct light)", frame_width=SPHERE_PIXELS,
+                             frame_height=SPHERE_PIXELS, tools="save", name="sphere",
+                             x_range=(0, 1), y_range=(0, 1), min_border=0)
+        self.sphere.axis.visible = False
+        self.sphere.grid.visible = False
+        self.sphere_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="spheres")
+        self.sphere.image_rgba("image", x="x", y=0, dw="dw", dh=1, source=self.sphere_source)
+
+        self.lobe = lobe_canvas_class()(size=420, width=420, height=420)
+        self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom",
+                                           margin=(0, 10))
+
+        controls = pn.Column(
+            pn.pane.Markdown("### Incidence"), self.theta_slider, self.phi_slider,
+            pn.Row(self.cosine_box, self.log_box),
+            pn.pane.Markdown("### Materials"), pn.Row(self.spec_input, self.add_button),
+            self.error, self.cards, width=380)
+        views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
+                                 pn.Column(self.polar, self.albedo)),
+                          self.sphere)
+        self.layout = pn.Row(controls, views, name="brdf explorer")
+
+    def _material_card(self, material):
+        pn = self._pn
+        from bokeh.models import CustomJSTickFormatter
+        index = len(self.materials) - 1
+        swatch = pn.pane.HTML(f'<span style="display:inline-block;width:14px;height:14px;'
+                              f'background:{material.colour}"></span>', width=20)
+        show = pn.widgets.Checkbox(label="show", value=True, width=60)
+        solo = pn.widgets.Toggle(label="solo", value=False, width=60)
+        show.param.watch(lambda e: self._visibility(material, visible=e.new), "value")
+        solo.param.watch(lambda e: self._visibility(material, solo=e.new), "value")
+        widgets = [pn.Row(swatch, show, solo)]
+        if not is_table(material.model):
+            log_format = CustomJSTickFormatter(code="return (10 ** tick).toPrecision(3)")
+            for s in view_data.parameter_sliders(material.model):
+                if s.log:
+                    w = pn.widgets.FloatSlider(label=s.name, start=math.log10(s.low),
+                                               end=math.log10(s.high),
+                                               value=math.log10(s.value), step=0.01,
+                                               format=log_format)
+                else:
+                    w = pn.widgets.FloatSlider(label=s.name, start=s.low, end=s.high,
+                                               value=s.value, step=(s.high - s.low) / 500)
+                w.param.watch(self._slider_callback(index, s), "value")
+                widgets.append(w)
+        material.widgets = widgets
+        self.cards.append(pn.Card(*widgets, title=material.label[:60],
+                                  header_color=material.colour, sizing_mode="stretch_width"))
+
+    def _slider_callback(self, index, slider):
+        def moved(event):
+            value = 10.0 ** event.new if slider.log else event.new
+            try:
+                self.set_parameter(index, slider.name, value)
+            except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
+                self.error.object, self.error.visible = _message(exc), True
+        return moved
+
+    def _incidence(self, theta=None, phi=None):
+        if theta is not None:
+            self.theta_i = float(theta)
+        if phi is not None:
+            self.phi_i = float(phi)
+        self.update()
+
+    def _option(self, **changes):
+        for key, value in changes.items():
+            setattr(self, key, bool(value))
+        self.update()
+
+    def _visibility(self, material, **changes):
+        for key, value in changes.items():
+            setattr(material, key, bool(value))
+        self.update()
+
+    def _add_glyphs(self, material):
+        from bokeh.models import ColumnDataSource
+        material.polar_source = ColumnDataSource({"x": [], "y": []},
+                                                 name=f"polar-{len(self.materials) - 1}")
+        material.albedo_source = ColumnDataSource({"theta": [], "a": [], "low": [], "high": []},
+                                                  name=f"albedo-{len(self.materials) - 1}")
+        material.polar_glyph = self.polar.line("x", "y", source=material.polar_source,
+                                               line_color=material.colour, line_width=2)
+        material.albedo_band = self.albedo.varea("theta", "low", "high",
+                                                 source=material.albedo_source,
+                                                 fill_color=material.colour, fill_alpha=0.2)
+        material.albedo_glyph = self.albedo.line("theta", "a", source=material.albedo_source,
+                                                 line_color=material.colour, line_width=2)
+
+    def _draw(self, data, shown):
+        from .lobe_canvas import lobe_entry
+        wi = incidence(self.theta_i, self.phi_i)
+        self.polar.title.text = "in-plane: r = " + ("f cos(theta_o)" if self.cosine else "f") \
+            + (" (log)" if self.log else "")
+        images, xs, lobes, triangles = [], [], [], None
+        peak = max([d["lobe"][3] for d in data.values()], default=1.0)
+        top = 1.0
+        curves = [d["polar"][1].mean(axis=-1) for d in data.values()]
+        polar_peak = max([float(np.nanmax(c)) for c in curves] + [1e-300])
+        for m in self.materials:
+            on = m in shown
+            m.polar_glyph.visible = m.albedo_glyph.visible = m.albedo_band.visible = on
+            if not on:
+                continue
+            d = data[id(m)]
+            angles, f = d["polar"]
+            r = f.mean(axis=-1)
+            r = view_data.lobe_radius(np.maximum(np.nan_to_num(r), 0.0), polar_peak, self.log)
+            signed = np.radians(angles)
+            # the incident side on the left: x = sin(signed theta_o), as in brdf.viz.inplane_plot
+            m.polar_source.data = {"x": r * np.sin(signed), "y": r * np.cos(signed)}
+            a = d["albedo"]
+            top = max(top, float(np.nanmax(a)))
+            m.albedo_source.data = {"theta": ALBEDO_THETA, "a": a.mean(axis=-1),
+                                    "low": a.min(axis=-1), "high": a.max(axis=-1)}
+            # every lobe to the scale of the largest, as BRDF Explorer draws them
+            _, triangles, values, _, directions = d["lobe"]
+            points = directions * view_data.lobe_radius(values, peak, self.log)[:, None]
+            lobes.append(lobe_entry(points, m.colour))
+            images.append(view_data.to_rgba(d["sphere"]))
+            xs.append(float(len(xs)))
+        self.albedo.y_range.end = 1.08 * top
+        self.albedo_marker.location = self.theta_i
+        self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
+                                     "y": [0.0, 1.1 * wi[2]]}
+        if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
+            self.lobe.triangles = triangles.ravel().tolist()  # sent once: the grid is fixed
+        self.lobe.param.update(lobes=lobes, incident=(1.2 * wi).tolist())
+        count = max(len(images), 1)
+        self.sphere.x_range.end = count
+        self.sphere.frame_width = SPHERE_PIXELS * count
+        self.sphere_source.data = {"image": images, "x": xs, "dw": [1.0] * len(images)}
+
+    def _repr_mimebundle_(self, include=None, exclude=None):
+        return self.layout._repr_mimebundle_(include, exclude)
+
+
+class Server:
+    """The explorer served on ``localhost``: every browser tab gets its own :class:`Explorer`
+    on the same materials (listed in ``explorers``, newest last).
+
+    Attributes
+    ----------
+    url : str
+        The page's address.
+    explorers : list of Explorer
+    """
+
+    def __init__(self, materials, port=0, show=True, threaded=True):
+        pn = require_panel()
+        self.materials = [material_from(m) for m in materials]
+        self.explorers = []
+        # Bokeh's and Panel's scripts come from this server, never from a CDN
+        os.environ["BOKEH_RESOURCES"] = "server"
+        self.port = _bindable(int(port)) if port else _free_port()
+        self.url = f"http://localhost:{self.port}/"
+        self.server = pn.serve(self._session, port=self.port, show=show, threaded=threaded,
+                               title="brdf explorer", address="localhost",
+                               websocket_origin=f"localhost:{self.port}", verbose=False)
+        if threaded:
+            _wait_for(self.port)
+
+    def _session(self):
+        explorer = Explorer(self.materials)
+        self.explorers.append(explorer)
+        return explorer.layout
+
+    def stop(self):
+        """Stop serving (a threaded server)."""
+        self.server.stop()
+
+
+def _wait_for(port, timeout=60.0):
+    """Return once ``localhost:port`` accepts connections (a threaded server binds in its own
+    thread, after :func:`panel.serve` returns)."""
+    import socket
+    end = time.monotonic() + timeout
+    while True:
+        try:
+            socket.create_connection(("localhost", port), timeout=1.0).close()
+            return
+        except OSError:
+            if time.monotonic() > end:
+                raise InputError(f"the explorer's server did not start on port {port} "
+                                 f"within {timeout:g} s") from None
+            time.sleep(0.05)
+
+
+def _bindable(port):
+    """``port``, or :class:`~brdf.errors.InputError` when this machine cannot serve on it."""
+    import socket
+    with socket.socket() as s:
+        try:
+            s.bind(("localhost", port))
+        except OSError as exc:
+            raise InputError(f"--port {port}: cannot serve there ({exc.strerror}); choose "
+                             "another port or leave --port out for a free one") from None
+    return port
+
+
+def _free_port():
+    import socket
+    with socket.socket() as s:
+        s.bind(("localhost", 0))
+        return s.getsockname()[1]
+
+
+def explore(*materials, port=None, show=True):
+    """Open the explorer on ``materials`` (models, tables, specs or paths) in a local web page.
+
+    In a script: serves the page in a background thread on ``port`` (default: a free one),
+    opens it in the browser when ``show``, and returns the :class:`Server` (``.url``,
+    ``.stop()``). In Jupyter: ``port=False`` returns an :class:`Explorer` to display in the
+    notebook instead of a server.
+    """
+    if port is False:
+        return Explorer(materials)
+    return Server(materials, port=port or 0, show=show)

@@ -1,0 +1,289 @@
+"""What the interactive explorer (:mod:`brdf.viz.explorer`) draws, as plain arrays.
+
+Each function takes a model (or anything with ``eval`` and ``albedo``) and returns numpy arrays,
+with no browser and no plotting library involved, so every view is tested on its own and the
+explorer's update after a slider moves costs only these evaluations (``benchmarks/
+bench_explore.py``): the lobe mesh, the in-plane curve, the directional albedo curve, the lit
+sphere's direct-lighting preview, and the sliders a model's declarations call for.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import frame_from_normal, spherical_to_cartesian, to_local
+from .lobes import LOG_DECADES, lobe_values
+from .samples import in_plane_directions
+
+__all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
+           "polar_curve", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
+           "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
+
+#: The preview's key light: towards the light from the sphere, upper left in front, and its
+#: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
+KEY_LIGHT = np.array([-1.0, 1.0, 1.0]) / math.sqrt(3.0)
+KEY_IRRADIANCE = 3.0
+#: Radiance of the uniform environment around the sphere (``lit_sphere``'s Environment(0.1)).
+ENVIRONMENT = 0.1
+#: The preview's pinhole camera: on +z at this distance from the unit sphere's centre, looking
+#: at it, with this horizontal field of view in degrees (``lit_sphere``'s camera).
+CAMERA_DISTANCE, CAMERA_FOV = 4.0, 32.0
+#: Slider range of a parameter whose fit box is unbounded: this factor either side of its value.
+OPEN_RANGE = 10.0
+
+
+# -- sliders ----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Slider:
+    """One slider: the flat parameter name (``"ggx.alpha"``, ``"lambert.albedo[1]"``), its
+    value, range and scale (``log`` where the declaration's prior is log)."""
+
+    name: str
+    value: float
+    low: float
+    high: float
+    log: bool
+    units: str = ""
+    doc: str = ""
+
+
+def _components(model):
+    """``(prefix, component)`` of every lobe and nested component (a Fresnel term), with the
+    prefix of its flat names (``"ggx."``, ``"ggx.fresnel."``)."""
+    from ..models.base import Component
+    names = model.lobe_names() if hasattr(model, "lobe_names") else [model.name]
+    stack = [(f"{name}.", lobe) for name, lobe in zip(names, model.lobes)]
+    while stack:
+        prefix, component = stack.pop(0)
+        yield prefix, component
+        for key, value in component.values.items():
+            if isinstance(value, Component):
+                stack.append((f"{prefix}{key}.", value))
+
+
+def _range(decl, value):
+    """Slider range: the declaration's fit box, closed where it is open, inside its bounds."""
+    low, high = decl.fit_bounds
+    low, high = max(low, decl.bounds[0]), min(high, decl.bounds[1])
+    scale = max(abs(value), 1e-3)
+    if not math.isfinite(low):
+        low = min(value, -scale * OPEN_RANGE)
+    if not math.isfinite(high):
+        high = max(value, scale * OPEN_RANGE)
+    if decl.prior == "log" and low <= 0.0:
+        low = min(value, high) / OPEN_RANGE ** 3 if value > 0 else high * 1e-4
+    # a value outside the fit box (fits may leave it within the bounds) widens the slider
+    return min(low, value), max(high, value)
+
+
+def parameter_sliders(model):
+    """The sliders of ``model``'s numeric parameters, from its families' declarations.
+
+    One slider per scalar value and one per channel of a per-channel value given per channel
+    (``lambert.albedo[0]`` ...); the range is the declaration's fit box (finite where fitting
+    searches), log-scaled where the prior is log. Optional parameters left unset (``alpha_y``)
+    and choices have no slider.
+    """
+    from ..models.base import Param
+    sliders = []
+    for prefix, component in _components(model):
+        for decl in component.PARAMS:
+            value = component.values.get(decl.name)
+            if not isinstance(decl, Param) or value is None:
+                continue
+            entries = ([(f"{prefix}{decl.name}", float(value))] if value.ndim == 0 else
+                       [(f"{prefix}{decl.name}[{i}]", float(v)) for i, v in enumerate(value)])
+            for name, v in entries:
+                low, high = _range(decl, v)
+                sliders.append(Slider(name, v, low, high, decl.prior == "log", decl.units,
+                                      decl.doc))
+    return sliders
+
+
+def with_parameter(model, name, value):
+    """A copy of ``model`` with the numeric parameter under flat name ``name`` set to
+    ``value`` (validated as in a spec: out of bounds raises :class:`~brdf.errors.SpecError`)."""
+    from ..models.base import Sum
+    base, _, index = name.partition("[")
+    head, _, rest = base.partition(".")
+    names = model.lobe_names() if isinstance(model, Sum) else [model.name]
+    if head not in names or not rest:
+        raise InputError(f"{model}: no parameter {name!r}; parameters: "
+                         f"{', '.join(model.params)}")
+    k = names.index(head)
+
+    def replace(component, path):
+        key, _, deeper = path.partition(".")
+        if deeper:
+            return component.replace(**{key: replace(component[key], deeper)})
+        if index:
+            current = np.array(component[key], dtype=float)
+            current[int(index.rstrip("]"))] = value
+            return component.replace(**{key: current})
+        return component.replace(**{key: value})
+
+    lobes = list(model.lobes)
+    lobes[k] = replace(lobes[k], rest)
+    return Sum(lobes) if isinstance(model, Sum) else lobes[0]
+
+
+# -- lobe, curves -----------------------------------------------------------------------------
+
+def _hemisphere(resolution):
+    theta = np.linspace(0.0, 0.5 * math.pi * (1 - 1e-6), resolution + 1)
+    phi = np.linspace(0.0, 2.0 * math.pi, 2 * resolution, endpoint=False)
+    return theta, phi
+
+
+def lobe_radius(values, peak, log=False):
+    """Radius drawn for values r >= 0: r / peak, or with ``log`` the decades above
+    ``peak 10^-LOG_DECADES`` over LOG_DECADES (0 at and below that floor)."""
+    if not log:
+        return values / peak
+    floor = peak * 10.0 ** -LOG_DECADES
+    return np.clip(np.log10(np.maximum(values, floor) / floor) / LOG_DECADES, 0.0, None)
+
+
+def lobe_mesh(model, wi, *, cosine=True, log=False, resolution=32, channel=None, peak=None):
+    """The 3-D lobe of ``model`` at incidence ``wi`` as a triangle mesh (the picture of
+    :func:`brdf.viz.lobe_surface`, without pyvista).
+
+    The outgoing hemisphere on a (theta, phi) grid, each direction wo pushed out to r(wo) wo:
+    r = f cos(theta_o) (``cosine``) or f, over ``peak`` (default: its maximum), or with ``log``
+    the decades above ``peak 10^-LOG_DECADES`` over LOG_DECADES.
+
+    Returns
+    -------
+    points : ndarray, shape (n, 3)
+    triangles : ndarray of int, shape (m, 3)
+        Indices into ``points``; the pole is one point, the azimuth closes without a seam.
+    values : ndarray, shape (n,)
+        r(wo) in 1/sr before scaling (the colour).
+    peak : float
+        The value drawn at radius 1.
+    directions : ndarray, shape (n, 3)
+        The unit directions wo of the points (to redraw at another peak: :func:`lobe_radius`).
+    """
+    theta, phi = _hemisphere(int(resolution))
+    nt, nphi = len(theta), len(phi)
+    wo = spherical_to_cartesian(theta[1:, None], phi[None, :]).reshape(-1, 3)
+    wo = np.concatenate([[[0.0, 0.0, 1.0]], wo])
+    values = lobe_values(model, np.asarray(wi, float), wo, cosine, channel)
+    values = np.maximum(np.nan_to_num(values, nan=0.0), 0.0)
+    top = float(values.max()) if peak is None else float(peak)
+    if not top > 0.0:
+        top = 1.0  # a lobe that is zero everywhere is drawn as a point, not refused
+    points = wo * lobe_radius(values, top, log)[:, None]
+    # rings of nphi points from index 1; ring k at 1 + k nphi
+    j = np.arange(nphi)
+    fan = np.stack([np.zeros(nphi, int), 1 + j, 1 + (j + 1) % nphi], axis=1)
+    k = np.arange(nt - 2)[:, None]
+    a = 1 + k * nphi + j
+    b = 1 + k * nphi + (j + 1) % nphi
+    quads = np.concatenate([np.stack([a, a + nphi, b], -1).reshape(-1, 3),
+                            np.stack([b, a + nphi, b + nphi], -1).reshape(-1, 3)])
+    return points, np.concatenate([fan, quads]), values, top, wo
+
+
+def polar_curve(model, wi, *, cosine=False, step=1.0):
+    """The BRDF in the plane of incidence of ``wi``: signed theta_o in degrees (negative on
+    the incident side, as :func:`brdf.viz.inplane_plot`) and the values ``(n, C)``."""
+    angles = np.arange(-89.0, 89.0 + step / 2, step)
+    wi = np.asarray(wi, float)
+    wo = in_plane_directions(wi, angles)
+    f = np.asarray(model.eval(np.broadcast_to(wi, wo.shape), wo), float)
+    return angles, f * wo[:, 2:3] if cosine else f
+
+
+def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3):
+    """Directional albedo ``(n, C)`` at incidence angles ``theta_deg`` (degrees), through
+    ``model.albedo`` at tolerance ``tol`` (a live curve needs 3 digits, not 5)."""
+    theta = np.radians(np.asarray(theta_deg, float))
+    wi = spherical_to_cartesian(theta, np.full_like(theta, math.radians(phi_deg)))
+    return np.asarray(model.albedo(wi, tol=tol), float)
+
+
+# -- lit sphere -------------------------------------------------------------------------------
+
+def _sphere_hits(size):
+    """Per pixel of a ``size`` x ``size`` image (row 0 at the top): the unit sphere's normal
+    where the camera ray hits it, the direction towards the camera, and the hit mask."""
+    half = math.tan(math.radians(CAMERA_FOV) / 2)
+    s = (np.arange(size) + 0.5) / size * 2 - 1
+    x, y = np.meshgrid(s * half, -s * half)
+    d = np.stack([x, y, -np.ones_like(x)], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    o = np.array([0.0, 0.0, CAMERA_DISTANCE])
+    # |o + t d| = 1: t^2 + 2 (o.d) t + |o|^2 - 1 = 0, nearest root
+    b = d @ o
+    disc = b * b - (o @ o - 1.0)
+    hit = disc > 0
+    t = -b - np.sqrt(np.where(hit, disc, 0.0))
+    n = o + t[..., None] * d
+    return n[hit], -d[hit], hit
+
+
+def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
+                   environment=ENVIRONMENT, albedo_steps=24):
+    """A unit sphere of ``model`` under a directional key light and a uniform environment,
+    direct lighting only (no interreflection; a sphere has none): the preview shown while a
+    slider moves.
+
+    Outgoing radiance per pixel L = f(wi, wo) E cos(theta_i) + L_env a(wo): the first term is
+    the reflection equation for a parallel light of irradiance E normal to it (Pharr et al.,
+    PBR 4th ed., eq. 4.14 with a delta light), the second the environment's, since a uniform
+    radiance L_env reflects L_env times the integral of f cos over the incident hemisphere,
+    which by reciprocity is the directional albedo at wo. That albedo is interpolated from
+    ``albedo_steps`` angles theta_o at phi_o = 0 (exact for isotropic models).
+
+    Returns
+    -------
+    ndarray, shape (size, size, C)
+        Radiance, NaN where the camera ray misses the sphere. The camera and lights are those
+        of :func:`brdf.render.scenes.lit_sphere`; the shading frame's tangent is that of
+        :func:`brdf.geometry.frame_from_normal`.
+    """
+    size = int(size)
+    if size < 2:
+        raise InputError(f"sphere_preview: size {size} must be at least 2 pixels")
+    normal, view, hit = _sphere_hits(size)
+    frame = frame_from_normal(normal)
+    light = np.asarray(light, float) / np.linalg.norm(light)
+    wi = to_local(np.broadcast_to(light, normal.shape), frame)
+    wo = to_local(view, frame)
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the sphere
+    wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
+    f = np.asarray(model.eval(wi, wo), float)
+    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[:, None]
+    if environment:
+        cos_o = np.linspace(0.0, 1.0, int(albedo_steps))
+        theta = np.degrees(np.arccos(np.clip(cos_o, 0, 1 - 1e-9)))
+        a = albedo_curve(model, theta)
+        env = np.stack([np.interp(wo[:, 2], cos_o, a[:, c]) for c in range(a.shape[1])], -1)
+        radiance = radiance + environment * env
+    out = np.full((size, size, radiance.shape[-1]), np.nan)
+    out[hit] = radiance
+    return out
+
+
+def to_rgba(image, exposure=0.0):
+    """Radiance ``(h, w, C)`` to display pixels ``(h, w)`` of packed uint32 RGBA (Bokeh's
+    ``image_rgba``, row 0 at the bottom): sRGB-encoded (IEC 61966-2-1), clipped at 1, scaled by
+    2^exposure; one channel is grey, more than 3 their mean; NaN is transparent."""
+    image = np.asarray(image, float) * 2.0 ** float(exposure)
+    if image.shape[-1] == 3:
+        rgb = image
+    else:
+        rgb = np.repeat(np.nanmean(image, axis=-1, keepdims=True) if image.shape[-1] > 1
+                        else image, 3, axis=-1)
+    missing = np.isnan(rgb).any(-1)
+    c = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
+    # sRGB transfer function, IEC 61966-2-1 section 5.2
+    c = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    rgba = np.empty(c.shape[:-1] + (4,), np.uint8)
+    rgba[..., :3] = np.round(c * 255)
+    rgba[..., 3] = np.where(missing, 0, 255)
+    return rgba[::-1].copy().view(np.uint32)[..., 0]
