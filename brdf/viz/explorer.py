@@ -32,12 +32,17 @@ EXTRA = 'pip install "brdf[explore]"'
 #: Colours of the materials, in the order they are added (matplotlib's tab10, as the plots).
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf")
-#: Incidence angles of the albedo curve, degrees.
+#: Incidence angles of the albedo curve, degrees: when a slider is let go, and while it moves
+#: (a draft that keeps every view live; ``benchmarks/bench_explore.py`` times both).
 ALBEDO_THETA = np.linspace(0.0, 89.0, 46)
-#: Polar steps of the 3-D lobe (azimuth steps are twice as many).
+DRAFT_ALBEDO_THETA = np.linspace(0.0, 89.0, 16)
+#: Polar steps of the 3-D lobe (azimuth steps are twice as many), full and draft: the page
+#: draws 2 n^2 triangles per lobe on a canvas, about 10 microseconds each in headless chromium.
 LOBE_RESOLUTION = 24
+DRAFT_LOBE_RESOLUTION = 16
 #: Pixels across each lit-sphere preview.
 SPHERE_SIZE = 128
+DRAFT_SPHERE_SIZE = 64
 #: Screen pixels across each lit sphere.
 SPHERE_PIXELS = 200
 
@@ -78,6 +83,7 @@ class Material:
     visible: bool = True
     solo: bool = False
     widgets: list = field(default_factory=list)
+    albedo_cache: tuple = None
 
 
 def _message(exc):
@@ -153,12 +159,16 @@ class Explorer:
         else:
             self.add_from_text(text)
 
-    def set_parameter(self, material, name, value):
-        """Set the flat-named parameter ``name`` of material number ``material`` and update."""
+    def set_parameter(self, material, name, value, draft=False):
+        """Set the flat-named parameter ``name`` of material number ``material`` and update
+        (a ``draft`` while a slider moves, see :meth:`update`)."""
         m = self.materials[material]
-        m.model = view_data.with_parameter(m.model, name, value)
-        m.label = str(m.model)
-        self.update()
+        model = view_data.with_parameter(m.model, name, value)
+        if model == m.model and not draft:
+            self.update()  # a slider let go where its last move left it: refine the draft
+            return
+        m.model, m.label = model, str(model)
+        self.update(draft)
 
     def _shown(self):
         solo = any(m.solo for m in self.materials)
@@ -166,27 +176,39 @@ class Explorer:
 
     # -- computation ------------------------------------------------------------------------
 
-    def view_data(self, material):
-        """The arrays every view draws for ``material`` at the current incidence (timed)."""
+    def view_data(self, material, draft=False):
+        """The arrays every view draws for ``material`` at the current incidence (timed);
+        a ``draft`` has a coarser albedo curve and a smaller sphere."""
+        thetas = DRAFT_ALBEDO_THETA if draft else ALBEDO_THETA
         wi = incidence(self.theta_i, self.phi_i)
         model, out, times = material.model, {}, {}
         start = time.perf_counter()
         out["lobe"] = view_data.lobe_mesh(model, wi, cosine=self.cosine, log=self.log,
-                                          resolution=LOBE_RESOLUTION)
+                                          resolution=DRAFT_LOBE_RESOLUTION if draft
+                                          else LOBE_RESOLUTION)
         times["lobe"] = time.perf_counter() - start
         start = time.perf_counter()
         out["polar"] = view_data.polar_curve(model, wi, cosine=self.cosine)
         times["polar"] = time.perf_counter() - start
         start = time.perf_counter()
-        out["albedo"] = view_data.albedo_curve(model, ALBEDO_THETA, self.phi_i)
+        # the curve does not depend on theta_i: kept while the model and phi_i stay
+        key = (str(model), self.phi_i, len(thetas))
+        if material.albedo_cache is None or material.albedo_cache[0] != key:
+            material.albedo_cache = key, view_data.albedo_curve(model, thetas, self.phi_i)
+        out["albedo"] = thetas, material.albedo_cache[1]
         times["albedo"] = time.perf_counter() - start
         start = time.perf_counter()
-        out["sphere"] = view_data.sphere_preview(model, SPHERE_SIZE)
+        # the environment's term needs the albedo at theta_o: the curve just computed
+        out["sphere"] = view_data.sphere_preview(
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
         times["sphere"] = time.perf_counter() - start
         return out, times
 
-    def update(self):
-        """Recompute every view of every material and push the arrays to the page."""
+    def update(self, draft=False):
+        """Recompute every view of every material and push the arrays to the page.
+
+        While a slider moves the page asks for ``draft`` updates (the albedo curve at
+        16 angles, a 64-pixel sphere, a coarser lobe), and for a full one when it is let go."""
         from .._threads import serial_below
         start = time.perf_counter()
         timings = {}
@@ -197,7 +219,7 @@ class Explorer:
         with serial_below(SPHERE_SIZE ** 2):
             for m in self.materials:
                 if m in shown:
-                    data[id(m)], times = self.view_data(m)
+                    data[id(m)], times = self.view_data(m, draft)
                     for key, value in times.items():
                         timings[key] = timings.get(key, 0.0) + value
         self._draw(data, shown)
@@ -216,8 +238,9 @@ class Explorer:
                                                    step=0.5, value=self.theta_i)
         self.phi_slider = pn.widgets.FloatSlider(label="phi_i [deg]", start=0.0, end=360.0,
                                                  step=1.0, value=self.phi_i)
-        self.theta_slider.param.watch(lambda e: self._incidence(theta=e.new), "value")
-        self.phi_slider.param.watch(lambda e: self._incidence(phi=e.new), "value")
+        for slider, key in ((self.theta_slider, "theta"), (self.phi_slider, "phi")):
+            slider.param.watch(lambda e, key=key: self._incidence(
+                draft=e.name == "value", **{key: e.new}), ["value", "value_throttled"])
         self.cosine_box = pn.widgets.Checkbox(label="f cos(theta_o)", value=self.cosine)
         self.log_box = pn.widgets.Checkbox(label="log radius", value=self.log)
         self.cosine_box.param.watch(lambda e: self._option(cosine=e.new), "value")
@@ -295,7 +318,7 @@ class Explorer:
                 else:
                     w = pn.widgets.FloatSlider(label=s.name, start=s.low, end=s.high,
                                                value=s.value, step=(s.high - s.low) / 500)
-                w.param.watch(self._slider_callback(index, s), "value")
+                w.param.watch(self._slider_callback(index, s), ["value", "value_throttled"])
                 widgets.append(w)
         material.widgets = widgets
         self.cards.append(pn.Card(*widgets, title=material.label[:60],
@@ -305,17 +328,18 @@ class Explorer:
         def moved(event):
             value = 10.0 ** event.new if slider.log else event.new
             try:
-                self.set_parameter(index, slider.name, value)
+                # "value" while the slider moves, "value_throttled" once it is let go
+                self.set_parameter(index, slider.name, value, draft=event.name == "value")
             except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
                 self.error.object, self.error.visible = _message(exc), True
         return moved
 
-    def _incidence(self, theta=None, phi=None):
+    def _incidence(self, theta=None, phi=None, draft=False):
         if theta is not None:
             self.theta_i = float(theta)
         if phi is not None:
             self.phi_i = float(phi)
-        self.update()
+        self.update(draft)
 
     def _option(self, **changes):
         for key, value in changes.items():
@@ -363,9 +387,9 @@ class Explorer:
             signed = np.radians(angles)
             # the incident side on the left: x = sin(signed theta_o), as in brdf.viz.inplane_plot
             m.polar_source.data = {"x": r * np.sin(signed), "y": r * np.cos(signed)}
-            a = d["albedo"]
+            thetas, a = d["albedo"]
             top = max(top, float(np.nanmax(a)))
-            m.albedo_source.data = {"theta": ALBEDO_THETA, "a": a.mean(axis=-1),
+            m.albedo_source.data = {"theta": thetas, "a": a.mean(axis=-1),
                                     "low": a.min(axis=-1), "high": a.max(axis=-1)}
             # every lobe to the scale of the largest, as BRDF Explorer draws them
             _, triangles, values, _, directions = d["lobe"]
@@ -377,9 +401,11 @@ class Explorer:
         self.albedo_marker.location = self.theta_i
         self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
                                      "y": [0.0, 1.1 * wi[2]]}
+        changes = {"lobes": lobes, "incident": (1.2 * wi).tolist()}
         if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
-            self.lobe.triangles = triangles.ravel().tolist()  # sent once: the grid is fixed
-        self.lobe.param.update(lobes=lobes, incident=(1.2 * wi).tolist())
+            # sent when the grid changes (a draft's is coarser), with the points it indexes
+            changes["triangles"] = triangles.ravel().tolist()
+        self.lobe.param.update(**changes)
         count = max(len(images), 1)
         self.sphere.x_range.end = count
         self.sphere.frame_width = SPHERE_PIXELS * count

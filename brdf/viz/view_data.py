@@ -227,7 +227,7 @@ def _sphere_hits(size):
 
 
 def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
-                   environment=ENVIRONMENT, albedo_steps=24):
+                   environment=ENVIRONMENT, albedo=None):
     """A unit sphere of ``model`` under a directional key light and a uniform environment,
     direct lighting only (no interreflection; a sphere has none): the preview shown while a
     slider moves.
@@ -236,8 +236,10 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     the reflection equation for a parallel light of irradiance E normal to it (Pharr et al.,
     PBR 4th ed., eq. 4.14 with a delta light), the second the environment's, since a uniform
     radiance L_env reflects L_env times the integral of f cos over the incident hemisphere,
-    which by reciprocity is the directional albedo at wo. That albedo is interpolated from
-    ``albedo_steps`` angles theta_o at phi_o = 0 (exact for isotropic models).
+    which by reciprocity is the directional albedo at wo. That albedo is interpolated in
+    cos(theta_o) from ``albedo``, a pair (theta in degrees, albedo ``(n, C)``) such as the
+    explorer's albedo curve already holds, by default 24 angles at phi = 0 (exact for isotropic
+    models up to the interpolation).
 
     Returns
     -------
@@ -259,9 +261,12 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     f = np.asarray(model.eval(wi, wo), float)
     radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[:, None]
     if environment:
-        cos_o = np.linspace(0.0, 1.0, int(albedo_steps))
-        theta = np.degrees(np.arccos(np.clip(cos_o, 0, 1 - 1e-9)))
-        a = albedo_curve(model, theta)
+        if albedo is None:
+            theta = np.degrees(np.arccos(np.linspace(1.0, 0.0, 24)))
+            albedo = theta, albedo_curve(model, theta)
+        theta, a = np.asarray(albedo[0], float), np.asarray(albedo[1], float)
+        cos_o = np.cos(np.radians(theta))[::-1]  # increasing, as np.interp needs
+        a = a[::-1]
         env = np.stack([np.interp(wo[:, 2], cos_o, a[:, c]) for c in range(a.shape[1])], -1)
         radiance = radiance + environment * env
     out = np.full((size, size, radiance.shape[-1]), np.nan)
