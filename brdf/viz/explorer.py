@@ -140,15 +140,26 @@ class Explorer:
     def add_from_text(self, text):
         """Add the material ``text`` names, as the page's text box does: an error shows its one
         line in the page instead of raising. True when the material was added."""
+        count = len(self.materials)
         try:
             self.add(text)
+            self.update()
         except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
+            if len(self.materials) > count:  # added, but its views cannot be drawn
+                self.remove(count)
             self.error.object = _message(exc)
             self.error.visible = True
             return False
         self.error.object, self.error.visible = "", False
-        self.update()
         return True
+
+    def remove(self, index):
+        """Remove material number ``index`` (its card and glyphs) and update."""
+        m = self.materials.pop(index)
+        self.cards.remove(m.card)
+        for glyph in (m.polar_glyph, m.albedo_glyph, m.albedo_band, m.samples_glyph):
+            glyph.visible = False
+        self.update()
 
     def _add_from_page(self):
         """The text box's material, added on the document's next tick: new plot glyphs must be
@@ -189,6 +200,8 @@ class Explorer:
         times["lobe"] = time.perf_counter() - start
         start = time.perf_counter()
         out["polar"] = view_data.polar_curve(model, wi, cosine=self.cosine)
+        if is_table(model):  # its samples over its interpolant (and the other curves)
+            out["samples"] = view_data.measured_in_plane(model, wi, cosine=self.cosine)
         times["polar"] = time.perf_counter() - start
         start = time.perf_counter()
         # the curve does not depend on theta_i: kept while the model and phi_i stay
@@ -321,8 +334,9 @@ class Explorer:
                 w.param.watch(self._slider_callback(index, s), ["value", "value_throttled"])
                 widgets.append(w)
         material.widgets = widgets
-        self.cards.append(pn.Card(*widgets, title=material.label[:60],
-                                  header_color=material.colour, sizing_mode="stretch_width"))
+        material.card = pn.Card(*widgets, title=material.label[:60],
+                                header_color=material.colour, sizing_mode="stretch_width")
+        self.cards.append(material.card)
 
     def _slider_callback(self, index, slider):
         def moved(event):
@@ -359,6 +373,11 @@ class Explorer:
                                                   name=f"albedo-{len(self.materials) - 1}")
         material.polar_glyph = self.polar.line("x", "y", source=material.polar_source,
                                                line_color=material.colour, line_width=2)
+        material.samples_source = ColumnDataSource({"x": [], "y": []},
+                                                   name=f"samples-{len(self.materials) - 1}")
+        material.samples_glyph = self.polar.scatter("x", "y", source=material.samples_source,
+                                                    line_color=material.colour,
+                                                    fill_color=None, size=6)
         material.albedo_band = self.albedo.varea("theta", "low", "high",
                                                  source=material.albedo_source,
                                                  fill_color=material.colour, fill_alpha=0.2)
@@ -374,10 +393,13 @@ class Explorer:
         peak = max([d["lobe"][3] for d in data.values()], default=1.0)
         top = 1.0
         curves = [d["polar"][1].mean(axis=-1) for d in data.values()]
+        curves += [d["samples"][1].mean(axis=-1) for d in data.values()
+                   if "samples" in d and len(d["samples"][0])]
         polar_peak = max([float(np.nanmax(c)) for c in curves] + [1e-300])
         for m in self.materials:
             on = m in shown
             m.polar_glyph.visible = m.albedo_glyph.visible = m.albedo_band.visible = on
+            m.samples_glyph.visible = on
             if not on:
                 continue
             d = data[id(m)]
@@ -387,6 +409,12 @@ class Explorer:
             signed = np.radians(angles)
             # the incident side on the left: x = sin(signed theta_o), as in brdf.viz.inplane_plot
             m.polar_source.data = {"x": r * np.sin(signed), "y": r * np.cos(signed)}
+            if "samples" in d:
+                angles, f = d["samples"]
+                r = view_data.lobe_radius(np.maximum(f.mean(axis=-1), 0.0), polar_peak,
+                                          self.log)
+                signed = np.radians(angles)
+                m.samples_source.data = {"x": r * np.sin(signed), "y": r * np.cos(signed)}
             thetas, a = d["albedo"]
             top = max(top, float(np.nanmax(a)))
             m.albedo_source.data = {"theta": thetas, "a": a.mean(axis=-1),

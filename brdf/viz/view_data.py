@@ -15,10 +15,10 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import frame_from_normal, spherical_to_cartesian, to_local
 from .lobes import LOG_DECADES, lobe_values
-from .samples import in_plane_directions
+from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
+           "polar_curve", "measured_in_plane", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
            "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
@@ -198,11 +198,27 @@ def polar_curve(model, wi, *, cosine=False, step=1.0):
     return angles, f * wo[:, 2:3] if cosine else f
 
 
-def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3):
+def measured_in_plane(table, wi, *, cosine=False):
+    """A measured table's samples taken at the incidence ``wi`` and in its plane (those
+    :func:`brdf.viz.samples.samples_near` finds, as :func:`brdf.viz.inplane_plot` draws them):
+    signed theta_o in degrees (negative on the incident side) and the values ``(n, C)``, times
+    cos(theta_o) with ``cosine``."""
+    wi = np.asarray(wi, float)
+    wo, values = samples_near(table, wi, plane=True)
+    if not len(wo):
+        return np.zeros(0), np.zeros((0, np.asarray(table.values).shape[-1]))
+    signed = in_plane(wi, wo)[1]
+    return signed, values * wo[:, 2:3] if cosine else values
+
+
+def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3, resolution=24):
     """Directional albedo ``(n, C)`` at incidence angles ``theta_deg`` (degrees), through
-    ``model.albedo`` at tolerance ``tol`` (a live curve needs 3 digits, not 5)."""
+    ``model.albedo`` at tolerance ``tol`` (a live curve needs 3 digits, not 5), or for a
+    measured table its quadrature over the interpolant at ``resolution`` nodes."""
     theta = np.radians(np.asarray(theta_deg, float))
     wi = spherical_to_cartesian(theta, np.full_like(theta, math.radians(phi_deg)))
+    if is_table(model):
+        return np.asarray(model.albedo(wi, resolution=resolution), float)
     return np.asarray(model.albedo(wi, tol=tol), float)
 
 

@@ -5,6 +5,7 @@ real headless browser (Debian's chromium and chromedriver, driven by selenium)."
 import math
 import shutil
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from brdf.errors import InputError, SpecError
 from brdf.geometry import reflect, spherical_to_cartesian
 from brdf.viz import view_data
 
+ROOT = Path(__file__).resolve().parents[2]
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, fresnel=schlick(f0=0.04))"
 
 
@@ -102,6 +104,21 @@ def test_polar_curve_is_the_in_plane_brdf():
     np.testing.assert_allclose(fc[:, 0], f[:, 0] * np.cos(np.radians(angles)), rtol=1e-12)
 
 
+def test_measured_samples_in_the_plane_are_the_measured_values():
+    model = brdf.parse("lambert(albedo=0.3) + ggx(alpha=0.3)")
+    table = brdf.measure(model, "inplane:5")  # noiseless: the values are the model's
+    wi = spherical_to_cartesian(math.radians(30.0), 0.0)
+    angles, f = view_data.measured_in_plane(table, wi)
+    # both sides of the normal, every 5 degrees
+    assert len(angles) >= 30 and angles.min() < -60 and angles.max() > 60
+    np.testing.assert_allclose(angles / 5, np.round(angles / 5), atol=1e-9)
+    from brdf.viz.samples import in_plane_directions
+    wo = in_plane_directions(wi, angles)
+    np.testing.assert_allclose(f, model.eval(np.broadcast_to(wi, wo.shape), wo), rtol=1e-9)
+    _, fc = view_data.measured_in_plane(table, wi, cosine=True)
+    np.testing.assert_allclose(fc, f * wo[:, 2:3], rtol=1e-12)
+
+
 def test_albedo_curve_is_the_models_albedo():
     model = brdf.parse(SPEC)
     theta = np.array([0.0, 45.0, 80.0])
@@ -186,6 +203,12 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert "\n" not in app.error.object
     assert app.add_from_text("beckmann(alpha=0.3)") is True and len(app.materials) == 2
     assert not app.error.visible
+    # a measured file: its in-plane samples drawn over the curves
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    assert app.add_from_text(str(table)) is True and len(app.materials) == 3
+    assert len(app.materials[2].samples_source.data["x"]) > 10
+    app.remove(1)
+    assert len(app.materials) == 2 and len(app.cards) == 2
 
 
 # -- in a headless browser --------------------------------------------------------------------
@@ -307,6 +330,12 @@ def test_page_in_a_headless_browser():
         box.send_keys("beckmann(alpha=0.3)", Keys.ENTER)
         _wait(lambda: driver.execute_script(_MODEL, "polar-1"))
         assert len(app.materials) == 2
+        # a measured file typed in: its samples drawn in the page
+        box.clear()
+        box.send_keys(str(ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"), Keys.ENTER)
+        _wait(lambda: driver.execute_script(
+            "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+            "'samples-2'); return s && s.data.x.length > 10"))
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
