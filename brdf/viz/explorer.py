@@ -29,6 +29,10 @@ __all__ = ["Explorer", "explore", "material_from", "EXTRA"]
 
 #: The install command of the optional dependencies, said when they are missing.
 EXTRA = 'pip install "brdf[explore]"'
+#: The spec a measured material's fit box starts with.
+DEFAULT_FIT = "lambert + ggx"
+#: Seconds between two progress updates of a running fit sent to the page.
+PROGRESS_EVERY = 0.2
 #: Colours of the materials, in the order they are added (matplotlib's tab10, as the plots).
 COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf")
@@ -115,6 +119,7 @@ class Explorer:
 
     def __init__(self, materials=(), *, theta_i=30.0, phi_i=0.0):
         pn = require_panel()
+        self._doc = pn.state.curdoc  # the browser session's document, when served
         self.materials = []
         self.theta_i, self.phi_i = float(theta_i), float(phi_i)
         self.cosine, self.log = True, False
@@ -164,11 +169,8 @@ class Explorer:
     def _add_from_page(self):
         """The text box's material, added on the document's next tick: new plot glyphs must be
         made while the server holds the document's lock, which a widget's event does not."""
-        text, doc = self.spec_input.value, self._pn.state.curdoc
-        if doc is not None and doc.session_context is not None:
-            doc.add_next_tick_callback(lambda: self.add_from_text(text))
-        else:
-            self.add_from_text(text)
+        text = self.spec_input.value
+        self._soon(lambda: self.add_from_text(text))
 
     def set_parameter(self, material, name, value, draft=False):
         """Set the flat-named parameter ``name`` of material number ``material`` and update
@@ -320,7 +322,10 @@ class Explorer:
         show.param.watch(lambda e: self._visibility(material, visible=e.new), "value")
         solo.param.watch(lambda e: self._visibility(material, solo=e.new), "value")
         widgets = [pn.Row(swatch, show, solo)]
-        if not is_table(material.model):
+        if is_table(material.model):
+            widgets += self._fit_widgets(material)
+        else:
+            widgets += self._export_widgets(material)
             log_format = CustomJSTickFormatter(code="return (10 ** tick).toPrecision(3)")
             for s in view_data.parameter_sliders(material.model):
                 if s.log:
@@ -337,6 +342,108 @@ class Explorer:
         material.card = pn.Card(*widgets, title=material.label[:60],
                                 header_color=material.colour, sizing_mode="stretch_width")
         self.cards.append(material.card)
+
+    def _fit_widgets(self, material):
+        """A measured material's fit box: a spec, a button, progress and the outcome."""
+        pn = self._pn
+        material.fit_spec = pn.widgets.TextInput(value=DEFAULT_FIT, width=220,
+                                                 placeholder="a spec to fit")
+        material.fit_button = pn.widgets.Button(label="fit", width=60)
+        material.fit_progress = pn.indicators.Progress(active=False, value=-1, visible=False,
+                                                       width=280)
+        material.fit_status = pn.pane.Markdown("", css_classes=["brdf-fit-status"])
+        material.fit_button.on_click(lambda e: self.start_fit(material))
+        return [pn.Row(material.fit_spec, material.fit_button), material.fit_progress,
+                material.fit_status]
+
+    def _export_widgets(self, material):
+        """Download buttons for the model in the library's export formats."""
+        pn = self._pn
+        buttons = []
+        for fmt, suffix in (("mitsuba", ".xml"), ("gltf", ".gltf")):
+            buttons.append(pn.widgets.FileDownload(
+                callback=self._export_callback(material, fmt), filename=f"material{suffix}",
+                label=f"export {fmt}", embed=False, width=140))
+        return [pn.Row(*buttons)]
+
+    def _export_callback(self, material, fmt):
+        def export():
+            import io
+
+            import brdf
+            try:
+                result = brdf.export(material.model, fmt)
+            except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
+                self.error.object, self.error.visible = _message(exc), True
+                return io.StringIO("")
+            self.error.object, self.error.visible = "", False
+            return io.StringIO(result.text)
+        return export
+
+    # -- fitting ----------------------------------------------------------------------------
+
+    def _soon(self, fn):
+        """Run ``fn`` where it may change the page: on the document's next tick when served
+        (from any thread), at once otherwise."""
+        doc = getattr(self, "_doc", None)
+        if doc is not None and doc.session_context is not None:
+            doc.add_next_tick_callback(fn)
+        else:
+            fn()
+
+    def start_fit(self, material, spec=None, **options):
+        """Fit ``spec`` (default: the material's fit box) to measured ``material`` (a
+        :class:`Material` or its index) in a background thread, with progress in the page;
+        the fitted model is added as a new material when it ends. ``options`` go to
+        :func:`brdf.fit` (default ``seed=0``). Returns the thread."""
+        import threading
+        if isinstance(material, int):
+            material = self.materials[material]
+        if not is_table(material.model):
+            raise InputError(f"{material.label}: a fit needs a measured table")
+        spec = material.fit_spec.value if spec is None else spec
+        options.setdefault("seed", 0)
+        material.fit_button.disabled = True
+        material.fit_progress.param.update(visible=True, active=True)
+        material.fit_status.object = f"fitting `{spec}` ..."
+        state = {"last": 0.0, "start": time.perf_counter()}
+
+        def progress(done, total):
+            now = time.perf_counter()
+            if now - state["last"] >= PROGRESS_EVERY:
+                state["last"] = now
+                text = f"fitting `{spec}`: {done} evaluations, {now - state['start']:.1f} s"
+                self._soon(lambda: setattr(material.fit_status, "object", text))
+
+        def run():
+            import brdf
+            try:
+                result = brdf.fit(material.model, spec, progress=progress, **options)
+            except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
+                message = _message(exc)
+                self._soon(lambda: self._fit_ended(material, None, message))
+                return
+            self._soon(lambda: self._fit_ended(material, result, None))
+
+        thread = threading.Thread(target=run, name="brdf-explorer-fit", daemon=True)
+        material.fit_thread = thread
+        thread.start()
+        return thread
+
+    def _fit_ended(self, material, result, message):
+        material.fit_button.disabled = False
+        material.fit_progress.param.update(visible=False, active=False)
+        if result is None:
+            material.fit_status.object = ""
+            self.error.object, self.error.visible = message, True
+            return
+        fitted = self.add(result.model)
+        fitted.fit = result
+        warnings = f" ({len(result.warnings)} warnings)" if result.warnings else ""
+        material.fit_status.object = (
+            f"fitted in {result.timing['total_s']:.1f} s: loss {result.loss:.4g}, "
+            f"verdict {result.verdict}{warnings}; shown as material {len(self.materials)}")
+        self.update()
 
     def _slider_callback(self, index, slider):
         def moved(event):

@@ -189,6 +189,28 @@ def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
 pytest.importorskip("panel", reason="the explorer's extra: pip install 'brdf[explore]'")
 
 
+def test_a_fit_in_the_background_adds_the_fitted_model_and_exports_it():
+    from brdf.viz.explorer import Explorer
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    app = Explorer([str(table)])
+    app.start_fit(0, "lambert + beckmann").join(120)
+    assert len(app.materials) == 2 and not app.error.visible
+    # the same fit as the library's, run here on the same data and options
+    expected = brdf.fit(brdf.read(table), "lambert + beckmann", seed=0, progress=False)
+    assert app.materials[1].model == expected.model
+    assert "fitted in" in app.materials[0].fit_status.object
+    assert not app.materials[0].fit_progress.visible
+    text = app._export_callback(app.materials[1], "mitsuba")().getvalue()
+    assert text == brdf.export(expected.model, "mitsuba").text
+    # a bad spec in the fit box: the library's line in the page, no new material
+    app.start_fit(0, "ggx(alpha=-3)").join(60)
+    assert len(app.materials) == 2 and "outside its bounds" in app.error.object
+    # a model without an export: the message, an empty file
+    app.add("phong")
+    assert app._export_callback(app.materials[2], "gltf")().getvalue() == ""
+    assert "phong" in app.error.object
+
+
 def test_explorer_updates_its_sources_and_reports_bad_input():
     from brdf.viz.explorer import Explorer
     app = Explorer([SPEC])
@@ -336,6 +358,14 @@ def test_page_in_a_headless_browser():
         _wait(lambda: driver.execute_script(
             "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
             "'samples-2'); return s && s.data.x.length > 10"))
+        # fit its card's spec (lambert + ggx) in the background: the fit joins the materials
+        button = _wait(lambda: [b for b in driver.execute_script(_DEEP, "button")
+                                if b.text.strip() == "fit"])[0]
+        button.click()
+        _wait(lambda: "fitted in" in _text(driver), timeout=120)
+        _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
+        assert len(app.materials) == 4 and app.materials[3].fit.converged
+        assert str(app.materials[3].model).startswith("lambert(albedo=[")
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
