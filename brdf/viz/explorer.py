@@ -47,6 +47,9 @@ DRAFT_LOBE_RESOLUTION = 16
 #: Pixels across each lit-sphere preview.
 SPHERE_SIZE = 128
 DRAFT_SPHERE_SIZE = 64
+#: Pixels across the theta_h / theta_d slice, full and draft, and the decades its log colours
+#: span under the peak (as brdf.viz.slice_plot).
+SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
 #: Screen pixels across each lit sphere.
 SPHERE_PIXELS = 200
 
@@ -217,6 +220,11 @@ class Explorer:
         out["sphere"] = view_data.sphere_preview(
             model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
         times["sphere"] = time.perf_counter() - start
+        if material is self._shown()[0]:  # the slice shows the first material shown
+            start = time.perf_counter()
+            out["slice"] = view_data.slice_image(model, self.phi_d,
+                                                 DRAFT_SLICE_SIZE if draft else SLICE_SIZE)
+            times["slice"] = time.perf_counter() - start
         return out, times
 
     def update(self, draft=False):
@@ -297,6 +305,7 @@ class Explorer:
         self.sphere_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="spheres")
         self.sphere.image_rgba("image", x="x", y=0, dw="dw", dh=1, source=self.sphere_source)
 
+        self._build_slice(pn)
         self.lobe = lobe_canvas_class()(size=420, width=420, height=420)
         self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom",
                                            margin=(0, 10))
@@ -308,8 +317,39 @@ class Explorer:
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
-                          self.sphere)
+                          pn.Row(self.sphere, pn.Column(self.phi_d_slider, self.slice)))
         self.layout = pn.Row(controls, views, name="brdf explorer")
+
+    def _build_slice(self, pn):
+        """The theta_h / theta_d image of the first material shown, log colour, in the MERL
+        layout (sqrt theta_h across), with its phi_d slider."""
+        from bokeh.models import ColorBar, ColumnDataSource, LogColorMapper
+        from bokeh.palettes import Magma256
+        from bokeh.plotting import figure
+        self.phi_d = 90.0
+        self.phi_d_slider = pn.widgets.FloatSlider(label="slice phi_d [deg]", start=0.0,
+                                                   end=180.0, step=1.0, value=self.phi_d,
+                                                   width=300)
+        self.phi_d_slider.param.watch(self._phi_d, ["value", "value_throttled"])
+        self.slice = figure(title="theta_h / theta_d slice", width=340, height=300,
+                            x_range=(0, 1), y_range=(0, 90), tools="save,hover",
+                            name="slice", tooltips=[("f_r", "@image")])
+        ticks = [0, 1, 5, 10, 20, 45, 90]
+        self.slice.xaxis.ticker = [math.sqrt(t / 90.0) for t in ticks]
+        self.slice.xaxis.major_label_overrides = {math.sqrt(t / 90.0): str(t) for t in ticks}
+        self.slice.xaxis.axis_label = "theta_h [deg] (sqrt spacing)"
+        self.slice.yaxis.axis_label = "theta_d [deg]"
+        self.slice_mapper = LogColorMapper(palette=Magma256, low=1e-3, high=1.0,
+                                           nan_color="#dddddd")
+        self.slice_source = ColumnDataSource({"image": []}, name="slice-image")
+        self.slice.image("image", x=0, y=0, dw=1, dh=90, source=self.slice_source,
+                         color_mapper=self.slice_mapper)
+        self.slice.add_layout(ColorBar(color_mapper=self.slice_mapper, width=8,
+                                       title="f_r [1/sr]"), "right")
+
+    def _phi_d(self, event):
+        self.phi_d = float(event.new)
+        self.update(draft=event.name == "value")
 
     def _material_card(self, material):
         pn = self._pn
@@ -545,6 +585,23 @@ class Explorer:
         self.sphere.x_range.end = count
         self.sphere.frame_width = SPHERE_PIXELS * count
         self.sphere_source.data = {"image": images, "x": xs, "dw": [1.0] * len(images)}
+        self._draw_slice(data, shown)
+
+    def _draw_slice(self, data, shown):
+        image = data[id(shown[0])].get("slice") if shown else None
+        if image is None:
+            self.slice_source.data = {"image": []}
+            self.slice.title.text = "theta_h / theta_d slice"
+            return
+        f = image.mean(axis=-1)
+        f = np.where(f > 0, f, np.nan)  # a log scale has no place for f <= 0: grey
+        peak = float(np.nanmax(f)) if np.isfinite(f).any() else 1.0
+        self.slice_mapper.update(low=peak * 10.0 ** -SLICE_DECADES, high=peak)
+        self.slice_source.data = {"image": [f]}
+        # the material by number: a title that changes length as a slider moves would have
+        # the page lay the figure out again at every move
+        number = self.materials.index(shown[0]) + 1
+        self.slice.title.text = f"slice of material {number}, phi_d = {self.phi_d:g}"
 
     def _repr_mimebundle_(self, include=None, exclude=None):
         return self.layout._repr_mimebundle_(include, exclude)

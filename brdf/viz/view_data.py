@@ -13,12 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import frame_from_normal, spherical_to_cartesian, to_local
+from ..geometry import (directions_from_half_diff, frame_from_normal, spherical_to_cartesian,
+                        to_local)
 from .lobes import LOG_DECADES, lobe_values
 from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "measured_in_plane", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
+           "polar_curve", "measured_in_plane", "slice_image", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
            "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
@@ -209,6 +210,29 @@ def measured_in_plane(table, wi, *, cosine=False):
         return np.zeros(0), np.zeros((0, np.asarray(table.values).shape[-1]))
     signed = in_plane(wi, wo)[1]
     return signed, values * wo[:, 2:3] if cosine else values
+
+
+def slice_image(model, phi_d=90.0, resolution=90):
+    """The theta_h / theta_d image at a fixed phi_d (degrees) in the MERL layout, the picture of
+    :func:`brdf.viz.slice_plot`: rows theta_d from 0 to 90 degrees (linear), columns theta_h
+    with sqrt(theta_h / 90 deg) linear, as the MERL table spaces it (Matusik et al. 2003;
+    docs/conventions.md section 6), pixel centres.
+
+    Returns
+    -------
+    ndarray, shape (resolution, resolution, C)
+        f_r in 1/sr, row 0 at theta_d = 0; NaN where a direction is below the horizon.
+    """
+    n = int(resolution)
+    u = (np.arange(n) + 0.5) / n
+    theta_h = 0.5 * math.pi * u ** 2
+    theta_d = 0.5 * math.pi * u
+    wi, wo = directions_from_half_diff(theta_h[None, :], 0.0, theta_d[:, None],
+                                       math.radians(phi_d))
+    f = np.asarray(model.eval(wi, wo), float)
+    below = (wi[..., 2] <= 0) | (wo[..., 2] <= 0)
+    f[below] = np.nan
+    return f
 
 
 def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3, resolution=24):

@@ -119,6 +119,32 @@ def test_measured_samples_in_the_plane_are_the_measured_values():
     np.testing.assert_allclose(fc, f * wo[:, 2:3], rtol=1e-12)
 
 
+def test_slice_image_is_the_brdf_at_its_half_and_difference_angles():
+    model = brdf.parse(SPEC)
+    image = view_data.slice_image(model, phi_d=90.0, resolution=30)
+    assert image.shape == (30, 30, 3)
+    # pixel (row i, column j): theta_d = 90 (i + 0.5) / 30, theta_h = 90 ((j + 0.5) / 30)^2
+    for i, j in ((0, 0), (7, 19), (29, 3), (15, 15)):
+        th, td = math.pi / 2 * ((j + 0.5) / 30) ** 2, math.pi / 2 * (i + 0.5) / 30
+        h = spherical_to_cartesian(th, 0.0)
+        # wi from (theta_d, phi_d) about h: Rusinkiewicz 1998, built here with a rotation
+        # matrix of its own rather than brdf.geometry's
+        d = spherical_to_cartesian(td, math.pi / 2)
+        c, s_ = math.cos(th), math.sin(th)
+        wi = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]]) @ d
+        wo = 2 * (wi @ h) * h - wi
+        if wi[2] <= 0 or wo[2] <= 0:
+            assert np.isnan(image[i, j]).all()
+        else:
+            np.testing.assert_allclose(image[i, j], model.eval(wi, wo), rtol=1e-9)
+    assert np.isfinite(image).all()  # at phi_d = 90 both directions stay above the horizon
+    # at phi_d = 0 they leave it where theta_h + theta_d > 90 degrees: the top right corner
+    image = view_data.slice_image(model, phi_d=0.0, resolution=30)
+    th = 90 * ((np.arange(30) + 0.5) / 30) ** 2
+    td = 90 * (np.arange(30) + 0.5) / 30
+    np.testing.assert_array_equal(np.isnan(image[..., 0]), td[:, None] + th[None, :] > 90)
+
+
 def test_albedo_curve_is_the_models_albedo():
     model = brdf.parse(SPEC)
     theta = np.array([0.0, 45.0, 80.0])
