@@ -37,6 +37,9 @@ def _alphas(n):
 def server_side(repeats, draft):
     from brdf.viz.explorer import Explorer
     app = Explorer([SPEC])
+    # the path-traced sphere that follows a full update runs in a thread of its own: timed
+    # here it would only compete with the next update for the two cores
+    app.refine = False
     app.set_parameter(0, "ggx.alpha", 0.3, draft)  # warm-up: kernels, first pushes
     totals, views = [], {}
     for alpha in _alphas(repeats):

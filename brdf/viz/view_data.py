@@ -19,7 +19,7 @@ from .lobes import LOG_DECADES, lobe_values
 from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "measured_in_plane", "slice_image", "albedo_curve", "sphere_preview", "to_rgba", "KEY_LIGHT",
+           "polar_curve", "measured_in_plane", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
            "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
@@ -312,6 +312,25 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     out = np.full((size, size, radiance.shape[-1]), np.nan)
     out[hit] = radiance
     return out
+
+
+def sphere_render(material, size=128, spp=64, seed=0):
+    """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
+    ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
+    the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
+    model or a measured table.
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3)
+        Radiance, NaN where the camera ray misses the sphere (as the preview).
+    """
+    from .. import render
+    scene = render.builtin("sphere", material)
+    image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
+                                   progress=False).image, dtype=float)
+    image[~_sphere_hits(int(size))[2]] = np.nan
+    return image
 
 
 def to_rgba(image, exposure=0.0):

@@ -201,6 +201,25 @@ def test_sphere_highlight_sits_at_the_half_vector():
     assert math.degrees(math.acos(min(1.0, n[row, col] @ half))) < 3.0
 
 
+def test_path_traced_sphere_agrees_with_the_preview():
+    # a lone convex sphere has no interreflection: the path tracer's estimate of the same
+    # direct and environment light converges to the preview
+    model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)")
+    preview = view_data.sphere_preview(model, 32)
+    traced = view_data.sphere_render(model, 32, spp=256, seed=1)
+    hit = ~np.isnan(preview[..., 0])
+    assert (np.isnan(traced[..., 0]) == ~hit).all()
+    # the interior, away from the silhouette, which the renderer antialiases and the preview
+    # samples at pixel centres
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    ratio = traced[inner].mean(axis=0) / preview[inner].mean(axis=0)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.02)
+    assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.05
+
+
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
     image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
     pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
@@ -243,6 +262,13 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     before = np.array(app.materials[0].polar_source.data["y"])
     app.set_parameter(0, "ggx.alpha", 0.5)
     after = np.array(app.materials[0].polar_source.data["y"])
+    # a full update is followed by the path-traced sphere, a draft is not
+    app.refine_thread.join(120)
+    assert app.sphere.title.text == "lit sphere (path traced, 64 spp)"
+    preview = app.sphere_source.data["image"]
+    app.set_parameter(0, "ggx.alpha", 0.4, draft=True)
+    assert app.sphere.title.text == "lit sphere (direct light)"
+    assert app.sphere_source.data["image"] is not preview
     assert not np.allclose(before, after)
     assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
     assert app.add_from_text("ggx(alpha=-1)") is False
