@@ -287,9 +287,14 @@ class Explorer:
                                    css_classes=["brdf-error"])
         self.cards = pn.Column(sizing_mode="stretch_width")
 
+        # no pan tool: dragging in the plot moves the incident direction (_drag_incidence)
         self.polar = figure(title="in-plane: r = f cos(theta_o)", width=420, height=260,
                             match_aspect=True, x_range=(-1.1, 1.1), y_range=(-0.05, 1.1),
-                            tools="pan,wheel_zoom,reset,save", name="polar")
+                            tools="wheel_zoom,reset,save", name="polar")
+        from bokeh.events import Pan, PanEnd, Tap
+        self.polar.on_event(Tap, lambda e: self._drag_incidence(e.x, e.y, draft=False))
+        self.polar.on_event(Pan, lambda e: self._drag_incidence(e.x, e.y, draft=True))
+        self.polar.on_event(PanEnd, lambda e: self._drag_incidence(e.x, e.y, draft=False))
         self.polar.xaxis.axis_label = "incident side  <  theta_o  >  specular side"
         self.albedo = figure(title="directional albedo", width=420, height=260,
                              x_range=(0, 90), y_range=(0, 1.08),
@@ -532,6 +537,17 @@ class Explorer:
             except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
                 self.error.object, self.error.visible = _message(exc), True
         return moved
+
+    def _drag_incidence(self, x, y, draft):
+        """A tap or a drag at (x, y) in the polar plot: theta_i is the angle of that point from
+        the normal, on either side (the curve's incident side is drawn on the left)."""
+        if x is None or y is None:
+            return
+        theta = min(89.0, math.degrees(math.atan2(abs(x), max(y, 0.0))))
+        # the slider follows (its step), and its watcher makes the draft update
+        self.theta_slider.value = round(theta * 2) / 2
+        if not draft:
+            self.update()
 
     def _incidence(self, theta=None, phi=None, draft=False):
         if theta is not None:

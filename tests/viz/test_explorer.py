@@ -271,6 +271,12 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert app.sphere_source.data["image"] is not preview
     assert not np.allclose(before, after)
     assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
+    # a tap in the polar plot at 45 degrees from the normal sets theta_i, slider too
+    app._drag_incidence(-0.5, 0.5, draft=False)
+    assert app.theta_i == 45.0 and app.theta_slider.value == 45.0
+    assert app.albedo_marker.location == 45.0
+    app.theta_slider.value = 30.0  # back where RGL measured (no sample within 2.5 deg of 45)
+    assert app.theta_i == 30.0
     assert app.add_from_text("ggx(alpha=-1)") is False
     assert app.error.visible and "alpha" in app.error.object and "bounds" in app.error.object
     assert app.add_from_text("/no/such/file.binary") is False
@@ -328,7 +334,8 @@ def _wait(predicate, timeout=30.0):
 
 def _polar(driver):
     return driver.execute_script(
-        "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+        "const d = window.Bokeh && Bokeh.documents[0]; if (!d) return null; "
+        "const s = [...d._all_models.values()].find(m => m.name === "
         "'polar-0'); return s ? Array.from(s.data.y) : null")
 
 
@@ -418,6 +425,14 @@ def test_page_in_a_headless_browser():
         _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
         assert len(app.materials) == 4 and app.materials[3].fit.converged
         assert str(app.materials[3].model).startswith("lambert(albedo=[")
+        # dragging in the polar plot moves the incident direction (last: the
+        # measured samples above were taken at theta_i = 30)
+        plot = _wait(lambda: [c for c in driver.execute_script(_DEEP, "canvas")
+                              if c.size["width"] > 300 and c.size["height"] > 200
+                              and "brdf-lobe" not in (c.get_attribute("class") or "")])[0]
+        ActionChains(driver).move_to_element_with_offset(plot, -60, -40).click_and_hold() \
+            .move_by_offset(-40, 0).release().perform()
+        _wait(lambda: app.theta_i != 30.0)
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
