@@ -183,9 +183,9 @@ class Explorer:
         self._soon(lambda: self.add_from_text(text))
 
     def set_parameter(self, material, name, value, draft=False):
-        """Set the flat-named parameter ``name`` of material number ``material`` and update
-        (a ``draft`` while a slider moves, see :meth:`update`)."""
-        m = self.materials[material]
+        """Set the flat-named parameter ``name`` of ``material`` (a :class:`Material` or its
+        index) and update (a ``draft`` while a slider moves, see :meth:`update`)."""
+        m = self.materials[material] if isinstance(material, int) else material
         model = view_data.with_parameter(m.model, name, value)
         if model == m.model and not draft:
             self.update()  # a slider let go where its last move left it: refine the draft
@@ -366,10 +366,11 @@ class Explorer:
         self.phi_d = float(event.new)
         self.update(draft=event.name == "value")
 
-    def _material_card(self, material):
+    def _material_card(self, material, replace=None):
+        """The material's card: colour, show, solo, then sliders and exports (a model) or
+        the fit box (a table); in place of the card ``replace`` when given."""
         pn = self._pn
         from bokeh.models import CustomJSTickFormatter
-        index = len(self.materials) - 1
         swatch = pn.pane.HTML(f'<span style="display:inline-block;width:14px;height:14px;'
                               f'background:{material.colour}"></span>', width=20)
         show = pn.widgets.Checkbox(label="show", value=True, width=60)
@@ -391,12 +392,34 @@ class Explorer:
                 else:
                     w = pn.widgets.FloatSlider(label=s.name, start=s.low, end=s.high,
                                                value=s.value, step=(s.high - s.low) / 500)
-                w.param.watch(self._slider_callback(index, s), ["value", "value_throttled"])
+                w.param.watch(self._slider_callback(material, s), ["value", "value_throttled"])
+                if s.splits:
+                    split = pn.widgets.Button(label="RGB", width=50, margin=(18, 0, 0, 0),
+                                              description="one value per channel")
+                    split.on_click(lambda e, name=s.name: self.split_channels(material, name))
+                    w = pn.Row(w, split)
                 widgets.append(w)
         material.widgets = widgets
-        material.card = pn.Card(*widgets, title=material.label[:60],
-                                header_color=material.colour, sizing_mode="stretch_width")
-        self.cards.append(material.card)
+        card = pn.Card(*widgets, title=material.label[:60], header_color=material.colour,
+                       sizing_mode="stretch_width")
+        if replace is None:
+            self.cards.append(card)
+        else:
+            self.cards[list(self.cards).index(replace)] = card
+        material.card = card
+
+    def split_channels(self, material, name):
+        """Give the per-channel parameter ``name`` of ``material`` (a :class:`Material` or its
+        index) one value per channel, each the value it held (three, RGB, for a model of one
+        channel), with a slider each."""
+        if isinstance(material, int):
+            material = self.materials[material]
+        channels = material.model.channels if material.model.channels > 1 else 3
+        value = material.model.params[name]
+        material.model = view_data.with_parameter(material.model, name, [value] * channels)
+        material.label = str(material.model)
+        self._material_card(material, replace=material.card)
+        self.update()
 
     def _fit_widgets(self, material):
         """A measured material's fit box: a spec, a button, progress and the outcome."""
@@ -528,12 +551,12 @@ class Explorer:
         self.sphere_source.data = dict(self.sphere_source.data, image=images)
         self.sphere.title.text = f"lit sphere (path traced, {REFINE_SPP} spp)"
 
-    def _slider_callback(self, index, slider):
+    def _slider_callback(self, material, slider):
         def moved(event):
             value = 10.0 ** event.new if slider.log else event.new
             try:
                 # "value" while the slider moves, "value_throttled" once it is let go
-                self.set_parameter(index, slider.name, value, draft=event.name == "value")
+                self.set_parameter(material, slider.name, value, draft=event.name == "value")
             except Exception as exc:  # noqa: BLE001  (the page says it; the server stays up)
                 self.error.object, self.error.visible = _message(exc), True
         return moved

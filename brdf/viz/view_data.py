@@ -40,7 +40,8 @@ OPEN_RANGE = 10.0
 @dataclass(frozen=True)
 class Slider:
     """One slider: the flat parameter name (``"ggx.alpha"``, ``"lambert.albedo[1]"``), its
-    value, range and scale (``log`` where the declaration's prior is log)."""
+    value, range and scale (``log`` where the declaration's prior is log); ``splits`` when the
+    parameter is declared per channel but holds one value (it can become one per channel)."""
 
     name: str
     value: float
@@ -49,6 +50,7 @@ class Slider:
     log: bool
     units: str = ""
     doc: str = ""
+    splits: bool = False
 
 
 def _components(model):
@@ -100,7 +102,7 @@ def parameter_sliders(model):
             for name, v in entries:
                 low, high = _range(decl, v)
                 sliders.append(Slider(name, v, low, high, decl.prior == "log", decl.units,
-                                      decl.doc))
+                                      decl.doc, decl.per_channel and value.ndim == 0))
     return sliders
 
 

@@ -256,6 +256,24 @@ def test_a_fit_in_the_background_adds_the_fitted_model_and_exports_it():
     assert "phong" in app.error.object
 
 
+def test_a_per_channel_parameter_splits_into_one_slider_per_channel():
+    from brdf.viz.explorer import Explorer
+    app = Explorer(["ggx(alpha=0.2)", "lambert(albedo=0.5) + ggx(alpha=0.2)"])
+    sliders = {s.name: s for s in view_data.parameter_sliders(app.materials[1].model)}
+    assert sliders["lambert.albedo"].splits and not sliders["ggx.alpha"].splits
+    app.split_channels(1, "lambert.albedo")
+    assert app.materials[1].model == brdf.parse("lambert(albedo=[0.5,0.5,0.5]) + ggx(alpha=0.2)")
+    assert len(app.cards) == 2 and app.cards[1] is app.materials[1].card
+    labels = [w.label for w in app.materials[1].widgets if hasattr(w, "label")]
+    assert {"lambert.albedo[0]", "lambert.albedo[1]", "lambert.albedo[2]"} <= set(labels)
+    # after the first material goes, the second's sliders still move the second
+    app.remove(0)
+    slider = next(w for w in app.materials[0].widgets
+                  if getattr(w, "label", None) == "lambert.albedo[2]")
+    slider.value = 0.25
+    assert app.materials[0].model.params["lambert.albedo[2]"] == 0.25
+
+
 def test_explorer_updates_its_sources_and_reports_bad_input():
     from brdf.viz.explorer import Explorer
     app = Explorer([SPEC])
@@ -430,6 +448,7 @@ def test_page_in_a_headless_browser():
         plot = _wait(lambda: [c for c in driver.execute_script(_DEEP, "canvas")
                               if c.size["width"] > 300 and c.size["height"] > 200
                               and "brdf-lobe" not in (c.get_attribute("class") or "")])[0]
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", plot)
         ActionChains(driver).move_to_element_with_offset(plot, -60, -40).click_and_hold() \
             .move_by_offset(-40, 0).release().perform()
         _wait(lambda: app.theta_i != 30.0)
