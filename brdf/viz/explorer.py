@@ -214,6 +214,7 @@ class Explorer:
         out["polar"] = view_data.polar_curve(model, wi, cosine=self.cosine)
         if is_table(model):  # its samples over its interpolant (and the other curves)
             out["samples"] = view_data.measured_in_plane(model, wi, cosine=self.cosine)
+            out["near"] = view_data.measured_near(model, wi, cosine=self.cosine)
         times["polar"] = time.perf_counter() - start
         start = time.perf_counter()
         # the curve does not depend on theta_i: kept while the model and phi_i stay
@@ -646,7 +647,13 @@ class Explorer:
             # every lobe to the scale of the largest, as BRDF Explorer draws them
             _, triangles, values, _, directions = d["lobe"]
             points = directions * view_data.lobe_radius(values, peak, self.log)[:, None]
-            lobes.append(lobe_entry(points, m.colour))
+            lobe = lobe_entry(points, m.colour)
+            if "near" in d:  # measured samples at the incidence, on the same scale
+                wo, f = d["near"]
+                r = view_data.lobe_radius(np.maximum(np.nan_to_num(f.mean(axis=-1)), 0.0),
+                                          peak, self.log)
+                lobe["samples"] = lobe_entry(wo * r[:, None], m.colour)["points"]
+            lobes.append(lobe)
             images.append(view_data.to_rgba(d["sphere"]))
             xs.append(float(len(xs)))
         self.albedo.y_range.end = 1.08 * top

@@ -75,6 +75,20 @@ export function render({ model, el }) {
       const col = `rgb(${rgb[0]*shade|0},${rgb[1]*shade|0},${rgb[2]*shade|0})`;
       ctx.fillStyle = col; ctx.fill();
     }
+    // measured samples: open circles in the lobe's colour, over the surfaces
+    let samples = 0;
+    for (const lobe of model.lobes) {
+      if (!lobe.samples) continue;
+      const bytes = Uint8Array.from(atob(lobe.samples), ch => ch.charCodeAt(0));
+      const pts = new Float32Array(bytes.buffer);
+      ctx.strokeStyle = "#000000"; ctx.lineWidth = 1;
+      for (let i = 0; i < pts.length; i += 3) {
+        const q = project([pts[i], pts[i+1], pts[i+2]], scale);
+        ctx.beginPath(); ctx.arc(q[0], q[1], 2.5, 0, 2 * Math.PI); ctx.stroke();
+        samples++;
+      }
+    }
+    canvas.dataset.samples = samples;
     // the incident direction (towards the light) and the normal
     const o = project([0, 0, 0], scale);
     for (const [v, colour] of [[model.incident, "#e07b00"], [[0, 0, 1.2], "#000000"]]) {
@@ -127,8 +141,9 @@ def lobe_canvas_class():
         from panel.custom import JSComponent
 
         class LobeCanvas(JSComponent):
-            """Lobes as ``[{"points": [x0, y0, z0, x1, ...], "colour": "#rrggbb"}]`` over the
-            shared ``triangles`` (flat indices), the ``incident`` direction, and the view's
+            """Lobes as ``[{"points": "base64 float32 x0 y0 z0 x1 ...", "colour": "#rrggbb",
+            "samples": "base64 float32 ..." (measured points, optional)}]`` over the shared
+            ``triangles`` (flat indices), the ``incident`` direction, and the view's
             ``yaw`` and ``pitch`` (radians) and ``zoom``."""
 
             lobes = param.List(default=[])

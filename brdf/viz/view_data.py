@@ -19,7 +19,7 @@ from .lobes import LOG_DECADES, lobe_values
 from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "measured_in_plane", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
+           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
            "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
@@ -235,6 +235,14 @@ def slice_image(model, phi_d=90.0, resolution=90):
     below = (wi[..., 2] <= 0) | (wo[..., 2] <= 0)
     f[below] = np.nan
     return f
+
+
+def measured_near(table, wi, *, cosine=True):
+    """A measured table's samples taken at the incidence ``wi`` (as
+    :func:`brdf.viz.samples.samples_near` finds them, at most MAX_POINTS): their directions
+    ``(n, 3)`` and r = f cos(theta_o) (or f) ``(n, C)``, the quantity of :func:`lobe_mesh`."""
+    wo, values = samples_near(table, np.asarray(wi, float))
+    return wo, values * wo[:, 2:3] if cosine else values
 
 
 def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3, resolution=24):

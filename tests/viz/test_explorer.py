@@ -145,6 +145,16 @@ def test_slice_image_is_the_brdf_at_its_half_and_difference_angles():
     np.testing.assert_array_equal(np.isnan(image[..., 0]), td[:, None] + th[None, :] > 90)
 
 
+def test_measured_samples_near_the_incidence_carry_the_lobes_quantity():
+    model = brdf.parse("lambert(albedo=0.3) + ggx(alpha=0.3)")
+    table = brdf.measure(model, "grid:10,30")
+    wi = spherical_to_cartesian(math.radians(30.0), 0.0)
+    wo, r = view_data.measured_near(table, wi)
+    assert len(wo) > 20
+    np.testing.assert_allclose(r, model.eval(np.broadcast_to(wi, wo.shape), wo) * wo[:, 2:3],
+                               rtol=1e-9)
+
+
 def test_albedo_curve_is_the_models_albedo():
     model = brdf.parse(SPEC)
     theta = np.array([0.0, 45.0, 80.0])
@@ -305,6 +315,7 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
     assert app.add_from_text(str(table)) is True and len(app.materials) == 3
     assert len(app.materials[2].samples_source.data["x"]) > 10
+    assert "samples" in app.lobe.lobes[2] and "samples" not in app.lobe.lobes[0]
     app.remove(1)
     assert len(app.materials) == 2 and len(app.cards) == 2
 
@@ -435,6 +446,7 @@ def test_page_in_a_headless_browser():
         _wait(lambda: driver.execute_script(
             "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
             "'samples-2'); return s && s.data.x.length > 10"))
+        _wait(lambda: int(lobe.get_attribute("data-samples") or 0) > 10)  # on the 3-D lobe
         # fit its card's spec (lambert + ggx) in the background: the fit joins the materials
         button = _wait(lambda: [b for b in driver.execute_script(_DEEP, "button")
                                 if b.text.strip() == "fit"])[0]
