@@ -25,8 +25,8 @@ from ..geometry import reflect, spherical_to_cartesian
 from .samples import (channel_count, channel_label, channel_values, incidence, is_table,
                       label, samples_near)
 
-__all__ = ["lobe_surface", "lobe_plotter", "plot_lobes", "has_display", "prepare_off_screen",
-           "LOG_DECADES", "HEADLESS_PACKAGES"]
+__all__ = ["lobe_surface", "lobe_plotter", "plot_lobes", "has_display", "LOG_DECADES",
+           "HEADLESS_PACKAGES"]
 
 #: A log-scale lobe spans this many decades below its peak (values under that sit at the origin).
 LOG_DECADES = 3.0
@@ -58,7 +58,7 @@ def has_display():
     return True
 
 
-def prepare_off_screen():
+def _prepare_off_screen():
     """Point VTK at EGL on a Linux machine without a display, or say which packages it needs
     (VTK would otherwise fail inside the renderer with a less helpful message)."""
     if not sys.platform.startswith("linux") or os.environ.get("DISPLAY"):
@@ -252,7 +252,7 @@ def lobe_plotter(subject, theta_i=(30.0,), phi_i=0.0, *, data=None, cosine=True,
         channel_values(np.zeros(channel_count(subject)), channel)  # one-line error if absent
     off_screen = (not has_display()) if off_screen is None else bool(off_screen)
     if off_screen:
-        prepare_off_screen()
+        _prepare_off_screen()
     resolution = _resolution(resolution, len(directions), "lobe_plotter")
     peak = _peak(subject, directions, cosine, channel, resolution)
     if not peak > 0.0:
