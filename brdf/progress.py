@@ -7,6 +7,9 @@ Long calls (fits, posteriors, batches, renders, the demo's stages) take ``progre
   ``brdf: render: 64 spp in 3.1 s``. Nothing at all while :func:`reporting` is quiet.
 - ``True``: the bar, wherever standard error goes (and even when quiet: it was asked for).
 - ``False``: nothing.
+- a callable: nothing on standard error; it is called as ``progress(done, total)`` each time
+  units are done (a fit's evaluations), from the thread doing the work (the explorer's page
+  shows its own bar with it).
 
 Lines start with the program's name: ``brdf``, or what :func:`reporting` sets (the command
 line sets ``brdf-fit`` and its ``--quiet``). Everything here goes to standard error, never
@@ -72,6 +75,8 @@ def mode(progress=None):
         if _current.quiet:
             return None
         return "bar" if sys.stderr.isatty() else "lines"
+    if callable(progress):
+        return None
     return "bar" if progress else None
 
 
@@ -104,6 +109,7 @@ class Task:
         self.total, self.desc, self.unit = total, desc, unit
         self.units = units or f"{unit}s"
         self.count = 0
+        self.callback = progress if callable(progress) else None
         self.mode = mode(progress)
         self.bar = bar(total, desc, unit, True) if self.mode == "bar" else None
         self.start = time.perf_counter()
@@ -112,6 +118,8 @@ class Task:
         self.count += n
         if self.bar is not None:
             self.bar.update(n)
+        if self.callback is not None:
+            self.callback(self.count, self.total)
 
     def set_postfix(self, **values):
         """Values shown after the bar (the loss of a fit); lines leave them out."""

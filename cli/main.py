@@ -12,7 +12,7 @@ import signal
 import sys
 import textwrap
 
-from . import arguments, commands, demo, export, precompile, render
+from . import arguments, commands, demo, explore, export, precompile, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -206,6 +206,7 @@ def build_parser():
     export.add_parser(sub, _subcommand)
     render.add_parsers(sub, _subcommand, arguments, SUBJECT_HELP, DATA_HELP)
     viz_commands.add_parsers(sub, _subcommand)
+    explore.add_parser(sub, _subcommand)
     demo.add_parser(sub, _subcommand)
     precompile.add_parser(sub, _subcommand)
     return parser

@@ -116,6 +116,19 @@ def test_fit_and_render_draw_the_bar_when_asked(capsys):
     assert capsys.readouterr().err == "" and result.image.shape == (8, 8, 3)
 
 
+def test_a_callable_progress_is_called_with_the_count_and_prints_nothing(capsys):
+    table = brdf.measure("lambert(albedo=0.5)", "inplane:15")
+    calls = []
+    result = brdf.fit(table, "lambert", starts=1, max_evals=200,
+                      progress=lambda done, total: calls.append((done, total)))
+    assert capsys.readouterr().err == ""
+    # one call per objective evaluation, counting up, against the fit's whole budget (a
+    # multiple of max_evals: one per run)
+    assert [done for done, _ in calls] == list(range(1, len(calls) + 1))
+    (total,) = {total for _, total in calls}
+    assert total % 200 == 0 and len(calls) == result.evaluations <= total
+
+
 def test_fit_render_and_batch_print_their_line_off_a_terminal(capsys, tmp_path):
     table = brdf.measure("lambert(albedo=0.5)", "inplane:15")
     brdf.fit(table, "lambert", starts=1)

@@ -585,9 +585,10 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
         Objective evaluations per local run or global search.
     tol : float
         Relative tolerance on the loss (nlopt ftol_rel; xtol_rel is its square root).
-    progress : bool, optional
+    progress : bool or callable, optional
         None (default): a bar on stderr when it is a terminal, otherwise one line when the
-        fit ends (``fit: 853 evals in 2.1 s``); True: the bar; False: nothing (see
+        fit ends (``fit: 853 evals in 2.1 s``); True: the bar; False: nothing; a callable is
+        called as ``progress(evaluations, budget)`` after each evaluation (see
         :mod:`brdf.progress`).
 
     Returns

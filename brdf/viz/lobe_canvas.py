@@ -1,0 +1,169 @@
+"""The explorer's 3-D lobe view: lobe meshes drawn in the browser on a 2-D canvas, turned by
+dragging and zoomed by the mouse wheel there, with no round trip to the server.
+
+A Panel ``JSComponent``: the server sends each lobe's points (float32, base64) and the
+mesh's triangles once; the page projects them, sorts the triangles far to near (the painter's
+algorithm) and fills them flat-shaded in the material's colour. Panel's VTK pane (vtk.js) was
+measured first and took 180 to 900 ms per update in headless chromium on two busy cores: it
+synchronises the whole scene over several round trips and renders through software WebGL; this
+view redraws in a few milliseconds and needs no WebGL.
+"""
+
+import numpy as np
+
+__all__ = ["lobe_canvas_class"]
+
+_ESM = r"""
+function rotate(p, yaw, pitch) {
+  // turn about the normal z by yaw, then tilt about the screen's x axis by pitch
+  const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
+  const x = cy * p[0] - sy * p[1], y = sy * p[0] + cy * p[1], z = p[2];
+  return [x, cp * y - sp * z, sp * y + cp * z];   // screen x, depth (larger: farther), up
+}
+
+export function render({ model, el }) {
+  const canvas = document.createElement("canvas");
+  canvas.width = model.size; canvas.height = model.size;
+  canvas.style.cursor = "grab";
+  canvas.className = "brdf-lobe";
+  const ctx = canvas.getContext("2d");
+  let dragging = null;
+
+  function project(p, scale) {
+    // screen x and y, depth, and the turned point (for normals, in the model's units)
+    const r = rotate(p, model.yaw, model.pitch);
+    return [model.size / 2 + scale * r[0], model.size * 0.62 - scale * r[2], r[1], r];
+  }
+
+  function draw() {
+    const t0 = performance.now();
+    const n = model.size, scale = 0.42 * n * model.zoom;
+    ctx.fillStyle = "#ffffff"; ctx.fillRect(0, 0, n, n);
+    // the surface: a disc of radius 1.1 in the plane z = 0
+    ctx.beginPath();
+    for (let k = 0; k <= 64; k++) {
+      const a = 2 * Math.PI * k / 64;
+      const q = project([1.1 * Math.cos(a), 1.1 * Math.sin(a), 0], scale);
+      if (k === 0) ctx.moveTo(q[0], q[1]); else ctx.lineTo(q[0], q[1]);
+    }
+    ctx.fillStyle = "rgba(200, 200, 200, 0.5)"; ctx.fill();
+    const tris = model.triangles, faces = [];
+    for (const lobe of model.lobes) {
+      // float32 points, base64: far cheaper to send and to read than a JSON list
+      const bytes = Uint8Array.from(atob(lobe.points), ch => ch.charCodeAt(0));
+      const pts = new Float32Array(bytes.buffer), m = pts.length / 3, proj = new Array(m);
+      for (let i = 0; i < m; i++) proj[i] = project([pts[3*i], pts[3*i+1], pts[3*i+2]], scale);
+      const c = lobe.colour, rgb = [parseInt(c.slice(1, 3), 16), parseInt(c.slice(3, 5), 16),
+                                    parseInt(c.slice(5, 7), 16)];
+      for (let t = 0; t < tris.length; t += 3) {
+        const a = proj[tris[t]], b = proj[tris[t+1]], d = proj[tris[t+2]];
+        if (!a || !b || !d) continue;   // points and triangles of different grids, mid-update
+        // flat shading by the normal's component along the view (light from the viewer)
+        const p = a[3], q = b[3], r = d[3];
+        const ux = q[0]-p[0], uy = q[1]-p[1], uz = q[2]-p[2];
+        const vx = r[0]-p[0], vy = r[1]-p[1], vz = r[2]-p[2];
+        const nx = uy*vz - uz*vy, ny = uz*vx - ux*vz, nz = ux*vy - uy*vx;
+        const len = Math.hypot(nx, ny, nz);
+        if (len === 0) continue;
+        faces.push([(a[2] + b[2] + d[2]) / 3, a, b, d, 0.35 + 0.65 * Math.abs(ny) / len, rgb]);
+      }
+    }
+    faces.sort((f, g) => g[0] - f[0]);
+    for (const [, a, b, d, shade, rgb] of faces) {
+      ctx.beginPath(); ctx.moveTo(a[0], a[1]); ctx.lineTo(b[0], b[1]); ctx.lineTo(d[0], d[1]);
+      ctx.closePath();
+      const col = `rgb(${rgb[0]*shade|0},${rgb[1]*shade|0},${rgb[2]*shade|0})`;
+      ctx.fillStyle = col; ctx.fill();
+    }
+    // measured samples: open circles in the lobe's colour, over the surfaces
+    let samples = 0;
+    for (const lobe of model.lobes) {
+      if (!lobe.samples) continue;
+      const bytes = Uint8Array.from(atob(lobe.samples), ch => ch.charCodeAt(0));
+      const pts = new Float32Array(bytes.buffer);
+      ctx.strokeStyle = "#000000"; ctx.lineWidth = 1;
+      for (let i = 0; i < pts.length; i += 3) {
+        const q = project([pts[i], pts[i+1], pts[i+2]], scale);
+        ctx.beginPath(); ctx.arc(q[0], q[1], 2.5, 0, 2 * Math.PI); ctx.stroke();
+        samples++;
+      }
+    }
+    canvas.dataset.samples = samples;
+    // the incident direction (towards the light) and the normal
+    const o = project([0, 0, 0], scale);
+    for (const [v, colour] of [[model.incident, "#e07b00"], [[0, 0, 1.2], "#000000"]]) {
+      const q = project(v, scale);
+      ctx.beginPath(); ctx.moveTo(o[0], o[1]); ctx.lineTo(q[0], q[1]);
+      ctx.strokeStyle = colour; ctx.lineWidth = 2; ctx.stroke();
+    }
+    canvas.dataset.drawMs = (performance.now() - t0).toFixed(2);
+    canvas.dataset.faces = faces.length;
+    canvas.dataset.drawn = (+canvas.dataset.drawn || 0) + 1;
+  }
+
+  canvas.addEventListener("pointerdown", e => {
+    dragging = [e.clientX, e.clientY, model.yaw, model.pitch];
+    canvas.setPointerCapture(e.pointerId);
+  });
+  canvas.addEventListener("pointermove", e => {
+    if (!dragging) return;
+    model.yaw = dragging[2] + 0.01 * (e.clientX - dragging[0]);
+    model.pitch = Math.max(-1.55, Math.min(1.55, dragging[3] + 0.01 * (e.clientY - dragging[1])));
+    schedule();
+  });
+  canvas.addEventListener("pointerup", () => { dragging = null; });
+  canvas.addEventListener("wheel", e => {
+    e.preventDefault();
+    model.zoom = Math.max(0.2, Math.min(10, model.zoom * Math.exp(-0.001 * e.deltaY)));
+    schedule();
+  }, { passive: false });
+  // one drawing per frame, after every property of an update has arrived
+  let pending = false;
+  function schedule() {
+    if (pending) return;
+    pending = true;
+    requestAnimationFrame(() => { pending = false; draw(); });
+  }
+  for (const name of ["lobes", "triangles", "incident", "yaw", "pitch", "zoom"]) {
+    model.on(name, schedule);
+  }
+  draw();
+  return canvas;
+}
+"""
+
+
+def lobe_canvas_class():
+    """The view's Panel component class (made on first use: Panel is an optional extra)."""
+    global _CLASS
+    if _CLASS is None:
+        import param
+        from panel.custom import JSComponent
+
+        class LobeCanvas(JSComponent):
+            """Lobes as ``[{"points": "base64 float32 x0 y0 z0 x1 ...", "colour": "#rrggbb",
+            "samples": "base64 float32 ..." (measured points, optional)}]`` over the shared
+            ``triangles`` (flat indices), the ``incident`` direction, and the view's
+            ``yaw`` and ``pitch`` (radians) and ``zoom``."""
+
+            lobes = param.List(default=[])
+            triangles = param.List(default=[])
+            incident = param.List(default=[0.0, 0.0, 1.0])
+            yaw = param.Number(default=-0.6)
+            pitch = param.Number(default=0.35)
+            zoom = param.Number(default=1.0)
+            size = param.Integer(default=420)
+            _esm = _ESM
+
+        _CLASS = LobeCanvas
+    return _CLASS
+
+
+_CLASS = None
+
+
+def lobe_entry(points, colour):
+    """A lobe as the view takes it: its points as base64 of little-endian float32 (x, y, z)."""
+    import base64
+    data = np.ascontiguousarray(points, dtype="<f4").tobytes()
+    return {"points": base64.b64encode(data).decode("ascii"), "colour": colour}

@@ -1,0 +1,363 @@
+"""What the interactive explorer (:mod:`brdf.viz.explorer`) draws, as plain arrays.
+
+Each function takes a model (or anything with ``eval`` and ``albedo``) and returns numpy arrays,
+with no browser and no plotting library involved, so every view is tested on its own and the
+explorer's update after a slider moves costs only these evaluations (``benchmarks/
+bench_explore.py``): the lobe mesh, the in-plane curve, the directional albedo curve, the lit
+sphere's direct-lighting preview, and the sliders a model's declarations call for.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import (directions_from_half_diff, frame_from_normal, spherical_to_cartesian,
+                        to_local)
+from .lobes import LOG_DECADES, lobe_values
+from .samples import in_plane, in_plane_directions, is_table, samples_near
+
+__all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
+           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
+           "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
+
+#: The preview's key light: towards the light from the sphere, upper left in front, and its
+#: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
+KEY_LIGHT = np.array([-1.0, 1.0, 1.0]) / math.sqrt(3.0)
+KEY_IRRADIANCE = 3.0
+#: Radiance of the uniform environment around the sphere (``lit_sphere``'s Environment(0.1)).
+ENVIRONMENT = 0.1
+#: The preview's pinhole camera: on +z at this distance from the unit sphere's centre, looking
+#: at it, with this horizontal field of view in degrees (``lit_sphere``'s camera).
+CAMERA_DISTANCE, CAMERA_FOV = 4.0, 32.0
+#: Slider range of a parameter whose fit box is unbounded: this factor either side of its value.
+OPEN_RANGE = 10.0
+
+
+# -- sliders ----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Slider:
+    """One slider: the flat parameter name (``"ggx.alpha"``, ``"lambert.albedo[1]"``), its
+    value, range and scale (``log`` where the declaration's prior is log); ``splits`` when the
+    parameter is declared per channel but holds one value (it can become one per channel)."""
+
+    name: str
+    value: float
+    low: float
+    high: float
+    log: bool
+    units: str = ""
+    doc: str = ""
+    splits: bool = False
+
+
+def _components(model):
+    """``(prefix, component)`` of every lobe and nested component (a Fresnel term), with the
+    prefix of its flat names (``"ggx."``, ``"ggx.fresnel."``)."""
+    from ..models.base import Component
+    names = model.lobe_names() if hasattr(model, "lobe_names") else [model.name]
+    stack = [(f"{name}.", lobe) for name, lobe in zip(names, model.lobes)]
+    while stack:
+        prefix, component = stack.pop(0)
+        yield prefix, component
+        for key, value in component.values.items():
+            if isinstance(value, Component):
+                stack.append((f"{prefix}{key}.", value))
+
+
+def _range(decl, value):
+    """Slider range: the declaration's fit box, closed where it is open, inside its bounds."""
+    low, high = decl.fit_bounds
+    low, high = max(low, decl.bounds[0]), min(high, decl.bounds[1])
+    scale = max(abs(value), 1e-3)
+    if not math.isfinite(low):
+        low = min(value, -scale * OPEN_RANGE)
+    if not math.isfinite(high):
+        high = max(value, scale * OPEN_RANGE)
+    if decl.prior == "log" and low <= 0.0:
+        low = min(value, high) / OPEN_RANGE ** 3 if value > 0 else high * 1e-4
+    # a value outside the fit box (fits may leave it within the bounds) widens the slider
+    return min(low, value), max(high, value)
+
+
+def parameter_sliders(model):
+    """The sliders of ``model``'s numeric parameters, from its families' declarations.
+
+    One slider per scalar value and one per channel of a per-channel value given per channel
+    (``lambert.albedo[0]`` ...); the range is the declaration's fit box (finite where fitting
+    searches), log-scaled where the prior is log. Optional parameters left unset (``alpha_y``)
+    and choices have no slider.
+    """
+    from ..models.base import Param
+    sliders = []
+    for prefix, component in _components(model):
+        for decl in component.PARAMS:
+            value = component.values.get(decl.name)
+            if not isinstance(decl, Param) or value is None:
+                continue
+            entries = ([(f"{prefix}{decl.name}", float(value))] if value.ndim == 0 else
+                       [(f"{prefix}{decl.name}[{i}]", float(v)) for i, v in enumerate(value)])
+            for name, v in entries:
+                low, high = _range(decl, v)
+                sliders.append(Slider(name, v, low, high, decl.prior == "log", decl.units,
+                                      decl.doc, decl.per_channel and value.ndim == 0))
+    return sliders
+
+
+def with_parameter(model, name, value):
+    """A copy of ``model`` with the numeric parameter under flat name ``name`` set to
+    ``value`` (validated as in a spec: out of bounds raises :class:`~brdf.errors.SpecError`)."""
+    from ..models.base import Sum
+    base, _, index = name.partition("[")
+    head, _, rest = base.partition(".")
+    names = model.lobe_names() if isinstance(model, Sum) else [model.name]
+    if head not in names or not rest:
+        raise InputError(f"{model}: no parameter {name!r}; parameters: "
+                         f"{', '.join(model.params)}")
+    k = names.index(head)
+
+    def replace(component, path):
+        key, _, deeper = path.partition(".")
+        if deeper:
+            return component.replace(**{key: replace(component[key], deeper)})
+        if index:
+            current = np.array(component[key], dtype=float)
+            current[int(index.rstrip("]"))] = value
+            return component.replace(**{key: current})
+        return component.replace(**{key: value})
+
+    lobes = list(model.lobes)
+    lobes[k] = replace(lobes[k], rest)
+    return Sum(lobes) if isinstance(model, Sum) else lobes[0]
+
+
+# -- lobe, curves -----------------------------------------------------------------------------
+
+def _hemisphere(resolution):
+    theta = np.linspace(0.0, 0.5 * math.pi * (1 - 1e-6), resolution + 1)
+    phi = np.linspace(0.0, 2.0 * math.pi, 2 * resolution, endpoint=False)
+    return theta, phi
+
+
+def lobe_radius(values, peak, log=False):
+    """Radius drawn for values r >= 0: r / peak, or with ``log`` the decades above
+    ``peak 10^-LOG_DECADES`` over LOG_DECADES (0 at and below that floor)."""
+    if not log:
+        return values / peak
+    floor = peak * 10.0 ** -LOG_DECADES
+    return np.clip(np.log10(np.maximum(values, floor) / floor) / LOG_DECADES, 0.0, None)
+
+
+def lobe_mesh(model, wi, *, cosine=True, log=False, resolution=32, channel=None, peak=None):
+    """The 3-D lobe of ``model`` at incidence ``wi`` as a triangle mesh (the picture of
+    :func:`brdf.viz.lobe_surface`, without pyvista).
+
+    The outgoing hemisphere on a (theta, phi) grid, each direction wo pushed out to r(wo) wo:
+    r = f cos(theta_o) (``cosine``) or f, over ``peak`` (default: its maximum), or with ``log``
+    the decades above ``peak 10^-LOG_DECADES`` over LOG_DECADES.
+
+    Returns
+    -------
+    points : ndarray, shape (n, 3)
+    triangles : ndarray of int, shape (m, 3)
+        Indices into ``points``; the pole is one point, the azimuth closes without a seam.
+    values : ndarray, shape (n,)
+        r(wo) in 1/sr before scaling (the colour).
+    peak : float
+        The value drawn at radius 1.
+    directions : ndarray, shape (n, 3)
+        The unit directions wo of the points (to redraw at another peak: :func:`lobe_radius`).
+    """
+    theta, phi = _hemisphere(int(resolution))
+    nt, nphi = len(theta), len(phi)
+    wo = spherical_to_cartesian(theta[1:, None], phi[None, :]).reshape(-1, 3)
+    wo = np.concatenate([[[0.0, 0.0, 1.0]], wo])
+    values = lobe_values(model, np.asarray(wi, float), wo, cosine, channel)
+    values = np.maximum(np.nan_to_num(values, nan=0.0), 0.0)
+    top = float(values.max()) if peak is None else float(peak)
+    if not top > 0.0:
+        top = 1.0  # a lobe that is zero everywhere is drawn as a point, not refused
+    points = wo * lobe_radius(values, top, log)[:, None]
+    # rings of nphi points from index 1; ring k at 1 + k nphi
+    j = np.arange(nphi)
+    fan = np.stack([np.zeros(nphi, int), 1 + j, 1 + (j + 1) % nphi], axis=1)
+    k = np.arange(nt - 2)[:, None]
+    a = 1 + k * nphi + j
+    b = 1 + k * nphi + (j + 1) % nphi
+    quads = np.concatenate([np.stack([a, a + nphi, b], -1).reshape(-1, 3),
+                            np.stack([b, a + nphi, b + nphi], -1).reshape(-1, 3)])
+    return points, np.concatenate([fan, quads]), values, top, wo
+
+
+def polar_curve(model, wi, *, cosine=False, step=1.0):
+    """The BRDF in the plane of incidence of ``wi``: signed theta_o in degrees (negative on
+    the incident side, as :func:`brdf.viz.inplane_plot`) and the values ``(n, C)``."""
+    angles = np.arange(-89.0, 89.0 + step / 2, step)
+    wi = np.asarray(wi, float)
+    wo = in_plane_directions(wi, angles)
+    f = np.asarray(model.eval(np.broadcast_to(wi, wo.shape), wo), float)
+    return angles, f * wo[:, 2:3] if cosine else f
+
+
+def measured_in_plane(table, wi, *, cosine=False):
+    """A measured table's samples taken at the incidence ``wi`` and in its plane (those
+    :func:`brdf.viz.samples.samples_near` finds, as :func:`brdf.viz.inplane_plot` draws them):
+    signed theta_o in degrees (negative on the incident side) and the values ``(n, C)``, times
+    cos(theta_o) with ``cosine``."""
+    wi = np.asarray(wi, float)
+    wo, values = samples_near(table, wi, plane=True)
+    if not len(wo):
+        return np.zeros(0), np.zeros((0, np.asarray(table.values).shape[-1]))
+    signed = in_plane(wi, wo)[1]
+    return signed, values * wo[:, 2:3] if cosine else values
+
+
+def slice_image(model, phi_d=90.0, resolution=90):
+    """The theta_h / theta_d image at a fixed phi_d (degrees) in the MERL layout, the picture of
+    :func:`brdf.viz.slice_plot`: rows theta_d from 0 to 90 degrees (linear), columns theta_h
+    with sqrt(theta_h / 90 deg) linear, as the MERL table spaces it (Matusik et al. 2003;
+    docs/conventions.md section 6), pixel centres.
+
+    Returns
+    -------
+    ndarray, shape (resolution, resolution, C)
+        f_r in 1/sr, row 0 at theta_d = 0; NaN where a direction is below the horizon.
+    """
+    n = int(resolution)
+    u = (np.arange(n) + 0.5) / n
+    theta_h = 0.5 * math.pi * u ** 2
+    theta_d = 0.5 * math.pi * u
+    wi, wo = directions_from_half_diff(theta_h[None, :], 0.0, theta_d[:, None],
+                                       math.radians(phi_d))
+    f = np.asarray(model.eval(wi, wo), float)
+    below = (wi[..., 2] <= 0) | (wo[..., 2] <= 0)
+    f[below] = np.nan
+    return f
+
+
+def measured_near(table, wi, *, cosine=True):
+    """A measured table's samples taken at the incidence ``wi`` (as
+    :func:`brdf.viz.samples.samples_near` finds them, at most MAX_POINTS): their directions
+    ``(n, 3)`` and r = f cos(theta_o) (or f) ``(n, C)``, the quantity of :func:`lobe_mesh`."""
+    wo, values = samples_near(table, np.asarray(wi, float))
+    return wo, values * wo[:, 2:3] if cosine else values
+
+
+def albedo_curve(model, theta_deg, phi_deg=0.0, tol=1e-3, resolution=24):
+    """Directional albedo ``(n, C)`` at incidence angles ``theta_deg`` (degrees), through
+    ``model.albedo`` at tolerance ``tol`` (a live curve needs 3 digits, not 5), or for a
+    measured table its quadrature over the interpolant at ``resolution`` nodes."""
+    theta = np.radians(np.asarray(theta_deg, float))
+    wi = spherical_to_cartesian(theta, np.full_like(theta, math.radians(phi_deg)))
+    if is_table(model):
+        return np.asarray(model.albedo(wi, resolution=resolution), float)
+    return np.asarray(model.albedo(wi, tol=tol), float)
+
+
+# -- lit sphere -------------------------------------------------------------------------------
+
+def _sphere_hits(size):
+    """Per pixel of a ``size`` x ``size`` image (row 0 at the top): the unit sphere's normal
+    where the camera ray hits it, the direction towards the camera, and the hit mask."""
+    half = math.tan(math.radians(CAMERA_FOV) / 2)
+    s = (np.arange(size) + 0.5) / size * 2 - 1
+    x, y = np.meshgrid(s * half, -s * half)
+    d = np.stack([x, y, -np.ones_like(x)], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    o = np.array([0.0, 0.0, CAMERA_DISTANCE])
+    # |o + t d| = 1: t^2 + 2 (o.d) t + |o|^2 - 1 = 0, nearest root
+    b = d @ o
+    disc = b * b - (o @ o - 1.0)
+    hit = disc > 0
+    t = -b - np.sqrt(np.where(hit, disc, 0.0))
+    n = o + t[..., None] * d
+    return n[hit], -d[hit], hit
+
+
+def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
+                   environment=ENVIRONMENT, albedo=None):
+    """A unit sphere of ``model`` under a directional key light and a uniform environment,
+    direct lighting only (no interreflection; a sphere has none): the preview shown while a
+    slider moves.
+
+    Outgoing radiance per pixel L = f(wi, wo) E cos(theta_i) + L_env a(wo): the first term is
+    the reflection equation for a parallel light of irradiance E normal to it (Pharr et al.,
+    PBR 4th ed., eq. 4.14 with a delta light), the second the environment's, since a uniform
+    radiance L_env reflects L_env times the integral of f cos over the incident hemisphere,
+    which by reciprocity is the directional albedo at wo. That albedo is interpolated in
+    cos(theta_o) from ``albedo``, a pair (theta in degrees, albedo ``(n, C)``) such as the
+    explorer's albedo curve already holds, by default 24 angles at phi = 0 (exact for isotropic
+    models up to the interpolation).
+
+    Returns
+    -------
+    ndarray, shape (size, size, C)
+        Radiance, NaN where the camera ray misses the sphere. The camera and lights are those
+        of :func:`brdf.render.scenes.lit_sphere`; the shading frame's tangent is that of
+        :func:`brdf.geometry.frame_from_normal`.
+    """
+    size = int(size)
+    if size < 2:
+        raise InputError(f"sphere_preview: size {size} must be at least 2 pixels")
+    normal, view, hit = _sphere_hits(size)
+    frame = frame_from_normal(normal)
+    light = np.asarray(light, float) / np.linalg.norm(light)
+    wi = to_local(np.broadcast_to(light, normal.shape), frame)
+    wo = to_local(view, frame)
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the sphere
+    wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
+    f = np.asarray(model.eval(wi, wo), float)
+    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[:, None]
+    if environment:
+        if albedo is None:
+            theta = np.degrees(np.arccos(np.linspace(1.0, 0.0, 24)))
+            albedo = theta, albedo_curve(model, theta)
+        theta, a = np.asarray(albedo[0], float), np.asarray(albedo[1], float)
+        cos_o = np.cos(np.radians(theta))[::-1]  # increasing, as np.interp needs
+        a = a[::-1]
+        env = np.stack([np.interp(wo[:, 2], cos_o, a[:, c]) for c in range(a.shape[1])], -1)
+        radiance = radiance + environment * env
+    out = np.full((size, size, radiance.shape[-1]), np.nan)
+    out[hit] = radiance
+    return out
+
+
+def sphere_render(material, size=128, spp=64, seed=0):
+    """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
+    ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
+    the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
+    model or a measured table.
+
+    Returns
+    -------
+    ndarray, shape (size, size, 3)
+        Radiance, NaN where the camera ray misses the sphere (as the preview).
+    """
+    from .. import render
+    scene = render.builtin("sphere", material)
+    image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
+                                   progress=False).image, dtype=float)
+    image[~_sphere_hits(int(size))[2]] = np.nan
+    return image
+
+
+def to_rgba(image, exposure=0.0):
+    """Radiance ``(h, w, C)`` to display pixels ``(h, w)`` of packed uint32 RGBA (Bokeh's
+    ``image_rgba``, row 0 at the bottom): sRGB-encoded (IEC 61966-2-1), clipped at 1, scaled by
+    2^exposure; one channel is grey, more than 3 their mean; NaN is transparent."""
+    image = np.asarray(image, float) * 2.0 ** float(exposure)
+    if image.shape[-1] == 3:
+        rgb = image
+    else:
+        rgb = np.repeat(np.nanmean(image, axis=-1, keepdims=True) if image.shape[-1] > 1
+                        else image, 3, axis=-1)
+    missing = np.isnan(rgb).any(-1)
+    c = np.clip(np.nan_to_num(rgb), 0.0, 1.0)
+    # sRGB transfer function, IEC 61966-2-1 section 5.2
+    c = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    rgba = np.empty(c.shape[:-1] + (4,), np.uint8)
+    rgba[..., :3] = np.round(c * 255)
+    rgba[..., 3] = np.where(missing, 0, 255)
+    return rgba[::-1].copy().view(np.uint32)[..., 0]

@@ -1,0 +1,520 @@
+"""The interactive explorer: its view arrays against independent results (analytic Lambert
+shading, the library's own albedo and in-plane evaluation, the declarations), and the page in a
+real headless browser (Debian's chromium and chromedriver, driven by selenium)."""
+
+import math
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import brdf
+from brdf.errors import InputError, SpecError
+from brdf.geometry import reflect, spherical_to_cartesian
+from brdf.viz import view_data
+
+ROOT = Path(__file__).resolve().parents[2]
+SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, fresnel=schlick(f0=0.04))"
+
+
+# -- sliders from the declarations ------------------------------------------------------------
+
+def test_sliders_follow_the_declarations():
+    model = brdf.parse(SPEC)
+    sliders = {s.name: s for s in view_data.parameter_sliders(model)}
+    # one per channel of a per-channel value, nested components included
+    assert list(sliders) == ["lambert.albedo[0]", "lambert.albedo[1]", "lambert.albedo[2]",
+                             "ggx.ks", "ggx.alpha", "ggx.fresnel.f0"]
+    assert set(sliders) == set(model.params)
+    alpha = type(model.lobes[1]).declaration("alpha")
+    assert alpha.prior == "log" and sliders["ggx.alpha"].log
+    assert (sliders["ggx.alpha"].low, sliders["ggx.alpha"].high) == alpha.fit_bounds
+    assert not sliders["lambert.albedo[0]"].log
+    assert (sliders["lambert.albedo[1]"].value, sliders["lambert.albedo[1]"].low,
+            sliders["lambert.albedo[1]"].high) == (0.4, 0.0, 1.0)
+    # every range is finite and holds the value
+    for s in sliders.values():
+        assert math.isfinite(s.low) and math.isfinite(s.high) and s.low <= s.value <= s.high
+
+
+def test_an_open_fit_box_gets_a_finite_log_range():
+    model = brdf.parse("phong(n=2000)")
+    for s in view_data.parameter_sliders(model):
+        assert 0 < s.high and math.isfinite(s.high) and s.low <= s.value <= s.high
+        if s.log:
+            assert s.low > 0
+
+
+def test_with_parameter_sets_one_value_and_validates():
+    model = brdf.parse(SPEC)
+    changed = view_data.with_parameter(model, "lambert.albedo[1]", 0.9)
+    assert changed.params["lambert.albedo[1]"] == 0.9
+    assert {k: v for k, v in changed.params.items() if k != "lambert.albedo[1]"} == \
+        {k: v for k, v in model.params.items() if k != "lambert.albedo[1]"}
+    assert view_data.with_parameter(model, "ggx.fresnel.f0", 0.5).params["ggx.fresnel.f0"] == 0.5
+    single = view_data.with_parameter(brdf.parse("ggx"), "ggx.alpha", 0.3)
+    assert single == brdf.parse("ggx(alpha=0.3)")
+    with pytest.raises(SpecError, match="bounds"):
+        view_data.with_parameter(model, "ggx.alpha", 10.0)
+    with pytest.raises(InputError, match="no parameter"):
+        view_data.with_parameter(model, "beckmann.alpha", 0.1)
+
+
+# -- lobe and curves --------------------------------------------------------------------------
+
+def test_lobe_mesh_is_closed_and_peaks_at_the_mirror_direction():
+    model = brdf.parse("ggx(alpha=0.05)")
+    wi = spherical_to_cartesian(math.radians(40.0), math.radians(30.0))
+    points, triangles, values, peak, directions = view_data.lobe_mesh(model, wi, cosine=False,
+                                                                      resolution=64)
+    assert triangles.min() == 0 and triangles.max() == len(points) - 1
+    # every edge of the hemisphere's cap is shared by two triangles except the rim's
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
+                                    triangles[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert set(counts) == {1, 2} and (counts == 1).sum() == 2 * 64
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, atol=1e-12)
+    assert np.isclose(peak, values.max())
+    top = directions[np.argmax(values)]
+    assert np.degrees(np.arccos(np.clip(top @ reflect(wi), -1, 1))) < 3.0
+    # the radius is f / peak: the model's own values
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1) * peak,
+                               model.eval(np.broadcast_to(wi, directions.shape),
+                                          directions)[:, 0], rtol=1e-12)
+
+
+def test_log_lobe_radius_spans_the_stated_decades():
+    values = np.array([1.0, 0.1, 1e-3, 1e-5])
+    np.testing.assert_allclose(view_data.lobe_radius(values, 1.0, log=True),
+                               [1.0, 2 / 3, 0.0, 0.0])
+    np.testing.assert_allclose(view_data.lobe_radius(values, 2.0), values / 2)
+
+
+def test_polar_curve_is_the_in_plane_brdf():
+    model = brdf.parse(SPEC)
+    wi = spherical_to_cartesian(math.radians(30.0), 0.0)
+    angles, f = view_data.polar_curve(model, wi, step=1.0)
+    assert angles[0] == -89 and angles[-1] == 89 and f.shape == (179, 3)
+    # +30 degrees on the specular side is the mirror direction of wi (phi_o = 180)
+    k = int(np.argmin(abs(angles - 30)))
+    np.testing.assert_allclose(f[k], model.eval(wi, reflect(wi)), rtol=1e-12)
+    _, fc = view_data.polar_curve(model, wi, step=1.0, cosine=True)
+    np.testing.assert_allclose(fc[:, 0], f[:, 0] * np.cos(np.radians(angles)), rtol=1e-12)
+
+
+def test_measured_samples_in_the_plane_are_the_measured_values():
+    model = brdf.parse("lambert(albedo=0.3) + ggx(alpha=0.3)")
+    table = brdf.measure(model, "inplane:5")  # noiseless: the values are the model's
+    wi = spherical_to_cartesian(math.radians(30.0), 0.0)
+    angles, f = view_data.measured_in_plane(table, wi)
+    # both sides of the normal, every 5 degrees
+    assert len(angles) >= 30 and angles.min() < -60 and angles.max() > 60
+    np.testing.assert_allclose(angles / 5, np.round(angles / 5), atol=1e-9)
+    from brdf.viz.samples import in_plane_directions
+    wo = in_plane_directions(wi, angles)
+    np.testing.assert_allclose(f, model.eval(np.broadcast_to(wi, wo.shape), wo), rtol=1e-9)
+    _, fc = view_data.measured_in_plane(table, wi, cosine=True)
+    np.testing.assert_allclose(fc, f * wo[:, 2:3], rtol=1e-12)
+
+
+def test_slice_image_is_the_brdf_at_its_half_and_difference_angles():
+    model = brdf.parse(SPEC)
+    image = view_data.slice_image(model, phi_d=90.0, resolution=30)
+    assert image.shape == (30, 30, 3)
+    # pixel (row i, column j): theta_d = 90 (i + 0.5) / 30, theta_h = 90 ((j + 0.5) / 30)^2
+    for i, j in ((0, 0), (7, 19), (29, 3), (15, 15)):
+        th, td = math.pi / 2 * ((j + 0.5) / 30) ** 2, math.pi / 2 * (i + 0.5) / 30
+        h = spherical_to_cartesian(th, 0.0)
+        # wi from (theta_d, phi_d) about h: Rusinkiewicz 1998, built here with a rotation
+        # matrix of its own rather than brdf.geometry's
+        d = spherical_to_cartesian(td, math.pi / 2)
+        c, s_ = math.cos(th), math.sin(th)
+        wi = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]]) @ d
+        wo = 2 * (wi @ h) * h - wi
+        if wi[2] <= 0 or wo[2] <= 0:
+            assert np.isnan(image[i, j]).all()
+        else:
+            np.testing.assert_allclose(image[i, j], model.eval(wi, wo), rtol=1e-9)
+    assert np.isfinite(image).all()  # at phi_d = 90 both directions stay above the horizon
+    # at phi_d = 0 they leave it where theta_h + theta_d > 90 degrees: the top right corner
+    image = view_data.slice_image(model, phi_d=0.0, resolution=30)
+    th = 90 * ((np.arange(30) + 0.5) / 30) ** 2
+    td = 90 * (np.arange(30) + 0.5) / 30
+    np.testing.assert_array_equal(np.isnan(image[..., 0]), td[:, None] + th[None, :] > 90)
+
+
+def test_measured_samples_near_the_incidence_carry_the_lobes_quantity():
+    model = brdf.parse("lambert(albedo=0.3) + ggx(alpha=0.3)")
+    table = brdf.measure(model, "grid:10,30")
+    wi = spherical_to_cartesian(math.radians(30.0), 0.0)
+    wo, r = view_data.measured_near(table, wi)
+    assert len(wo) > 20
+    np.testing.assert_allclose(r, model.eval(np.broadcast_to(wi, wo.shape), wo) * wo[:, 2:3],
+                               rtol=1e-9)
+
+
+def test_albedo_curve_is_the_models_albedo():
+    model = brdf.parse(SPEC)
+    theta = np.array([0.0, 45.0, 80.0])
+    curve = view_data.albedo_curve(model, theta, tol=1e-6)
+    wi = spherical_to_cartesian(np.radians(theta), np.zeros(3))
+    np.testing.assert_allclose(curve, model.albedo(wi, tol=1e-6), rtol=1e-9)
+    # Lambert: the albedo parameter at every angle
+    np.testing.assert_allclose(view_data.albedo_curve(brdf.parse("lambert(albedo=0.7)"),
+                                                      theta), 0.7, rtol=1e-6)
+
+
+# -- lit sphere -------------------------------------------------------------------------------
+
+def _sphere_normals(size):
+    """Independent ray-sphere hits: the camera of brdf.render.scenes.lit_sphere (pinhole at
+    z = 4, 32 degrees across), pixel centres, row 0 at the top."""
+    half = math.tan(math.radians(16.0))
+    out = np.full((size, size, 3), np.nan)
+    for row in range(size):
+        for col in range(size):
+            x = ((col + 0.5) / size * 2 - 1) * half
+            y = -((row + 0.5) / size * 2 - 1) * half
+            d = np.array([x, y, -1.0]) / math.sqrt(x * x + y * y + 1)
+            o = np.array([0.0, 0.0, 4.0])
+            b = o @ d
+            disc = b * b - 15.0
+            if disc > 0:
+                out[row, col] = o + (-b - math.sqrt(disc)) * d
+    return out
+
+
+def test_lambert_sphere_is_albedo_over_pi_cos_irradiance_plus_environment():
+    albedo = np.array([0.8, 0.5, 0.2])
+    size = 24
+    image = view_data.sphere_preview(brdf.parse("lambert(albedo=[0.8,0.5,0.2])"), size)
+    n = _sphere_normals(size)
+    hit = ~np.isnan(n[..., 0])
+    assert (~np.isnan(image[..., 0]) == hit).all() and hit.sum() > 0.5 * size * size
+    cos = np.maximum(n[hit] @ view_data.KEY_LIGHT, 0.0)
+    # Lambert under a parallel light: L = (albedo / pi) E cos(theta_i); a uniform environment
+    # of radiance L_env adds albedo L_env (Pharr et al., PBR 4th ed., eq. 4.14)
+    expected = (albedo / math.pi * view_data.KEY_IRRADIANCE * cos[:, None]
+                + albedo * view_data.ENVIRONMENT)
+    np.testing.assert_allclose(image[hit], expected, rtol=1e-6)
+
+
+def test_sphere_highlight_sits_at_the_half_vector():
+    image = view_data.sphere_preview(brdf.parse("ggx(alpha=0.05)"), 64, environment=0.0)
+    n = _sphere_normals(64)
+    row, col = np.unravel_index(np.nanargmax(image[..., 0]), image.shape[:2])
+    view = np.array([0.0, 0.0, 4.0]) - n[row, col]
+    half = view / np.linalg.norm(view) + view_data.KEY_LIGHT
+    half /= np.linalg.norm(half)
+    assert math.degrees(math.acos(min(1.0, n[row, col] @ half))) < 3.0
+
+
+def test_path_traced_sphere_agrees_with_the_preview():
+    # a lone convex sphere has no interreflection: the path tracer's estimate of the same
+    # direct and environment light converges to the preview
+    model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)")
+    preview = view_data.sphere_preview(model, 32)
+    traced = view_data.sphere_render(model, 32, spp=256, seed=1)
+    hit = ~np.isnan(preview[..., 0])
+    assert (np.isnan(traced[..., 0]) == ~hit).all()
+    # the interior, away from the silhouette, which the renderer antialiases and the preview
+    # samples at pixel centres
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    ratio = traced[inner].mean(axis=0) / preview[inner].mean(axis=0)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.02)
+    assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.05
+
+
+def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
+    image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
+    pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
+    # row 0 of the output is the bottom row of the image (Bokeh's image origin)
+    assert pixels[1, 0].tolist() == [0, 0, 0, 255] and pixels[1, 1].tolist() == [255] * 4
+    # sRGB of 0.2 is 0.4845 (IEC 61966-2-1): 124 of 255
+    assert pixels[0, 0, :3].tolist() == [124] * 3 and pixels[0, 1, 3] == 0
+
+
+# -- the app, without a browser ---------------------------------------------------------------
+
+pytest.importorskip("panel", reason="the explorer's extra: pip install 'brdf[explore]'")
+
+
+def test_a_fit_in_the_background_adds_the_fitted_model_and_exports_it():
+    from brdf.viz.explorer import Explorer
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    app = Explorer([str(table)])
+    app.start_fit(0, "lambert + beckmann").join(120)
+    assert len(app.materials) == 2 and not app.error.visible
+    # the same fit as the library's, run here on the same data and options
+    expected = brdf.fit(brdf.read(table), "lambert + beckmann", seed=0, progress=False)
+    assert app.materials[1].model == expected.model
+    assert "fitted in" in app.materials[0].fit_status.object
+    assert not app.materials[0].fit_progress.visible
+    text = app._export_callback(app.materials[1], "mitsuba")().getvalue()
+    assert text == brdf.export(expected.model, "mitsuba").text
+    # a bad spec in the fit box: the library's line in the page, no new material
+    app.start_fit(0, "ggx(alpha=-3)").join(60)
+    assert len(app.materials) == 2 and "outside its bounds" in app.error.object
+    # a model without an export: the message, an empty file
+    app.add("mirror")
+    assert app._export_callback(app.materials[2], "gltf")().getvalue() == ""
+    assert "mirror" in app.error.object
+
+
+def test_a_per_channel_parameter_splits_into_one_slider_per_channel():
+    from brdf.viz.explorer import Explorer
+    app = Explorer(["ggx(alpha=0.2)", "lambert(albedo=0.5) + ggx(alpha=0.2)"])
+    sliders = {s.name: s for s in view_data.parameter_sliders(app.materials[1].model)}
+    assert sliders["lambert.albedo"].splits and not sliders["ggx.alpha"].splits
+    app.split_channels(1, "lambert.albedo")
+    assert app.materials[1].model == brdf.parse("lambert(albedo=[0.5,0.5,0.5]) + ggx(alpha=0.2)")
+    assert len(app.cards) == 2 and app.cards[1] is app.materials[1].card
+    labels = [w.label for w in app.materials[1].widgets if hasattr(w, "label")]
+    assert {"lambert.albedo[0]", "lambert.albedo[1]", "lambert.albedo[2]"} <= set(labels)
+    # after the first material goes, the second's sliders still move the second
+    app.remove(0)
+    slider = next(w for w in app.materials[0].widgets
+                  if getattr(w, "label", None) == "lambert.albedo[2]")
+    slider.value = 0.25
+    assert app.materials[0].model.params["lambert.albedo[2]"] == 0.25
+
+
+def test_explorer_updates_its_sources_and_reports_bad_input():
+    from brdf.viz.explorer import Explorer
+    app = Explorer([SPEC])
+    before = np.array(app.materials[0].polar_source.data["y"])
+    app.set_parameter(0, "ggx.alpha", 0.5)
+    after = np.array(app.materials[0].polar_source.data["y"])
+    # a full update is followed by the path-traced sphere, a draft is not
+    app.refine_thread.join(120)
+    assert app.sphere.title.text == "lit sphere (path traced, 64 spp)"
+    preview = app.sphere_source.data["image"]
+    app.set_parameter(0, "ggx.alpha", 0.4, draft=True)
+    assert app.sphere.title.text == "lit sphere (direct light)"
+    assert app.sphere_source.data["image"] is not preview
+    assert not np.allclose(before, after)
+    assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
+    # a tap in the polar plot at 45 degrees from the normal sets theta_i, slider too
+    app._drag_incidence(-0.5, 0.5, draft=False)
+    assert app.theta_i == 45.0 and app.theta_slider.value == 45.0
+    assert app.albedo_marker.location == 45.0
+    app.theta_slider.value = 30.0  # back where RGL measured (no sample within 2.5 deg of 45)
+    assert app.theta_i == 30.0
+    assert app.add_from_text("ggx(alpha=-1)") is False
+    assert app.error.visible and "alpha" in app.error.object and "bounds" in app.error.object
+    assert app.add_from_text("/no/such/file.binary") is False
+    assert "\n" not in app.error.object
+    assert app.add_from_text("beckmann(alpha=0.3)") is True and len(app.materials) == 2
+    assert not app.error.visible
+    # a measured file: its in-plane samples drawn over the curves
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    assert app.add_from_text(str(table)) is True and len(app.materials) == 3
+    assert len(app.materials[2].samples_source.data["x"]) > 10
+    assert "samples" in app.lobe.lobes[2] and "samples" not in app.lobe.lobes[0]
+    app.remove(1)
+    assert len(app.materials) == 2 and len(app.cards) == 2
+
+
+# -- in a headless browser --------------------------------------------------------------------
+
+def _browser():
+    chromium = shutil.which("chromium") or shutil.which("chromium-browser")
+    driver = shutil.which("chromedriver")
+    if chromium is None or driver is None:
+        pytest.skip("no chromium or chromedriver: .ci/run installs Debian's chromium and "
+                    "chromium-driver for this test")
+    webdriver = pytest.importorskip("selenium.webdriver")
+    from selenium.webdriver.chrome.service import Service
+    options = webdriver.ChromeOptions()
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader",
+                 "--enable-unsafe-swiftshader", "--window-size=1400,1000"):
+        options.add_argument(flag)
+    options.binary_location = chromium
+    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    return webdriver.Chrome(service=Service(driver), options=options)
+
+
+#: JavaScript: the Bokeh document's model with this name, and elements found through every
+#: shadow root (Panel draws each widget in its own).
+_MODEL = "return [...Bokeh.documents[0]._all_models.values()].find(m => m.name === arguments[0])"
+_DEEP = """
+const selector = arguments[0], found = [];
+(function walk(root) {
+  root.querySelectorAll(selector).forEach(e => found.push(e));
+  root.querySelectorAll('*').forEach(e => { if (e.shadowRoot) walk(e.shadowRoot); });
+})(document);
+return found;"""
+
+
+def _wait(predicate, timeout=30.0):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise AssertionError("timed out waiting for the page")
+
+
+def _polar(driver):
+    return driver.execute_script(
+        "const d = window.Bokeh && Bokeh.documents[0]; if (!d) return null; "
+        "const s = [...d._all_models.values()].find(m => m.name === "
+        "'polar-0'); return s ? Array.from(s.data.y) : null")
+
+
+def _sphere(driver):
+    return driver.execute_script(
+        "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+        "'spheres'); return s && s.data.image.length ? Array.from(s.data.image[0]) : null")
+
+
+def _canvas(driver, canvas):
+    return driver.execute_script("return arguments[0].toDataURL()", canvas)
+
+
+def _text(driver):
+    return driver.execute_script("""
+const parts = [];
+(function walk(root) {
+  root.querySelectorAll('*').forEach(e => {
+    if (e.shadowRoot) walk(e.shadowRoot);
+    if (!e.children.length && e.textContent) parts.push(e.textContent);
+  });
+})(document);
+return parts.join(' ');""")
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_page_in_a_headless_browser():
+    from brdf.viz.explorer import explore
+    from selenium.webdriver import ActionChains, Keys
+    driver = _browser()
+    server = explore(SPEC, show=False)
+    port = server.port
+    try:
+        driver.set_page_load_timeout(120)
+        driver.get(f"http://localhost:{port}/")
+        first = _wait(lambda: driver.execute_script("return window.Bokeh && "
+                                                    "Bokeh.documents.length > 0") and
+                      _polar(driver))
+        sphere = _wait(lambda: _sphere(driver))
+        app, = server.explorers
+        lobe = _wait(lambda: driver.execute_script(_DEEP, "canvas.brdf-lobe"))[0]
+        # the mesh's triangles, less those the cosine folds to a point at the horizon
+        faces = int(_wait(lambda: lobe.get_attribute("data-faces")))
+        assert 0.9 * len(app.lobe.triangles) / 3 <= faces <= len(app.lobe.triangles) / 3
+        picture = _wait(lambda: _canvas(driver, lobe))
+        # the lobe turns in the page when dragged
+        ActionChains(driver).drag_and_drop_by_offset(lobe, 80, 20).perform()
+        turned = _wait(lambda: (lambda p: p if p != picture else None)(_canvas(driver, lobe)))
+        # every script comes from this server: nothing is downloaded at run time
+        sources = driver.execute_script("return Array.from(document.scripts).map(s => s.src)"
+                                        ".filter(s => s)")
+        assert sources and all(s.startswith(f"http://localhost:{port}/") for s in sources), \
+            sources
+        # drag the ggx.alpha slider's handle: the polar curve and the sphere change
+        handles = driver.execute_script(_DEEP, ".noUi-handle")
+        labels = driver.execute_script(_DEEP, ".bk-slider-title")
+        titles = [e.text for e in labels]
+        index = next(k for k, t in enumerate(titles) if t.startswith("ggx.alpha"))
+        ActionChains(driver).drag_and_drop_by_offset(handles[index], -60, 0).perform()
+        second = _wait(lambda: (lambda y: y if y and not np.allclose(y, first) else None)(
+            _polar(driver)))
+        assert not np.allclose(second, first)
+        _wait(lambda: _sphere(driver) != sphere)
+        _wait(lambda: _canvas(driver, lobe) != turned)
+        assert app.materials[0].model.params["ggx.alpha"] < 0.2
+        # a wrong spec typed into the page: the library's one line, and the server lives on
+        box = driver.execute_script(_DEEP, "input[type=text]")[0]
+        box.send_keys("ggx(alpha=-0.1)", Keys.ENTER)
+        message = _wait(lambda: "outside its bounds" in _text(driver) and _text(driver))
+        assert "ggx: alpha=-0.1 is outside its bounds [0.0001, 4]" in message
+        box.clear()
+        box.send_keys("beckmann(alpha=0.3)", Keys.ENTER)
+        _wait(lambda: driver.execute_script(_MODEL, "polar-1"))
+        assert len(app.materials) == 2
+        # a measured file typed in: its samples drawn in the page
+        box.clear()
+        box.send_keys(str(ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"), Keys.ENTER)
+        _wait(lambda: driver.execute_script(
+            "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+            "'samples-2'); return s && s.data.x.length > 10"))
+        _wait(lambda: int(lobe.get_attribute("data-samples") or 0) > 10)  # on the 3-D lobe
+        # fit its card's spec (lambert + ggx) in the background: the fit joins the materials
+        button = _wait(lambda: [b for b in driver.execute_script(_DEEP, "button")
+                                if b.text.strip() == "fit"])[0]
+        button.click()
+        _wait(lambda: "fitted in" in _text(driver), timeout=120)
+        _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
+        assert len(app.materials) == 4 and app.materials[3].fit.converged
+        assert str(app.materials[3].model).startswith("lambert(albedo=[")
+        # dragging in the polar plot moves the incident direction (last: the
+        # measured samples above were taken at theta_i = 30)
+        plot = _wait(lambda: [c for c in driver.execute_script(_DEEP, "canvas")
+                              if c.size["width"] > 300 and c.size["height"] > 200
+                              and "brdf-lobe" not in (c.get_attribute("class") or "")])[0]
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", plot)
+        ActionChains(driver).move_to_element_with_offset(plot, -60, -40).click_and_hold() \
+            .move_by_offset(-40, 0).release().perform()
+        _wait(lambda: app.theta_i != 30.0)
+        severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
+        assert not severe, severe
+    finally:
+        driver.quit()
+        server.stop()
+
+
+# -- the command line -------------------------------------------------------------------------
+
+def _brdf_fit(*args):
+    """The installed ``brdf-fit`` (beside this Python), started with ``args``."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    script = Path(sys.executable).with_name("brdf-fit")
+    return subprocess.Popen([str(script), *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def test_cli_without_the_extra_says_how_to_install_it():
+    import subprocess
+    import sys
+    # panel made unimportable, as in an install without brdf[explore]
+    code = ("import sys; sys.modules['panel'] = None; from brdf_cli.main import main; "
+            "sys.exit(main(['explore', 'ggx', '--no-browser']))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2
+    assert done.stderr == ('brdf-fit: error: the explorer needs Panel and Bokeh: '
+                           'pip install "brdf[explore]"\n')
+
+
+def test_cli_refuses_a_bad_spec_before_serving():
+    done = _brdf_fit("explore", "ggx(alpha=-1)", "--no-browser")
+    out, err = done.communicate(timeout=120)
+    assert done.returncode == 2 and out == ""
+    assert err.startswith("brdf-fit: error: ") and "bounds" in err and err.count("\n") == 1
+
+
+@pytest.mark.timeout(180)
+def test_cli_serves_the_page_until_interrupted():
+    import json
+    import signal
+    import urllib.request
+    done = _brdf_fit("explore", SPEC, "--no-browser", "--json")
+    try:
+        line = done.stdout.readline()
+        url = json.loads(line + "".join(iter(lambda: done.stdout.readline(), "}\n")) + "}")["url"]
+        with urllib.request.urlopen(url, timeout=60) as page:
+            assert page.status == 200 and b"brdf explorer" in page.read()
+    finally:
+        done.send_signal(signal.SIGINT)
+        out, err = done.communicate(timeout=60)
+    assert done.returncode == 0, err
