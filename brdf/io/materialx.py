@@ -142,13 +142,7 @@ def openpbr_eval(params, wi, wo, albedo_grid=None):
     if p.get("geometry_tangent") == "bitangent":  # tangent along y: rotate the frame by 90 deg
         wi, wo = _quarter_turn(wi), _quarter_turn(wo)
     at, ab = openpbr_alphas(p["specular_roughness"], p["specular_roughness_anisotropy"])
-    h = wi + wo
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    mu = np.clip(np.sum(wo * h, axis=-1), 0.0, 1.0)
-    ci, co = wi[..., 2], wo[..., 2]
-    above = (ci > 0.0) & (co > 0.0)
-    dg = np.where(above, _ggx_d(h, at, ab) * _ggx_g2(wi, wo, at, ab)
-                  / (4.0 * np.where(above, ci * co, 1.0)), 0.0)[..., None]
+    mu, above, dg = _ggx_terms(wi, wo, at, ab)
     metalness = float(p["base_metalness"])
     out = 0.0
     if metalness > 0.0:
@@ -190,6 +184,20 @@ def openpbr_roughness(alpha_t, alpha_b):
     alpha_b: alpha_t^2 + alpha_b^2 = 2 r^4 and 1 - a = alpha_b / alpha_t (the same equation)."""
     r = ((alpha_t ** 2 + alpha_b ** 2) / 2.0) ** 0.25
     return r, 1.0 - alpha_b / alpha_t
+
+
+def _ggx_terms(wi, wo, at, ab):
+    """``(mu, above, D G2 / (4 cos_i cos_o))`` of a GGX lobe shared by both shaders: mu is
+    wo.h clipped to [0, 1], ``above`` where both directions are above the horizon, and the
+    microfacet term shaped (..., 1), 0 below it."""
+    h = wi + wo
+    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
+    mu = np.clip(np.sum(wo * h, axis=-1), 0.0, 1.0)
+    ci, co = wi[..., 2], wo[..., 2]
+    above = (ci > 0.0) & (co > 0.0)
+    dg = np.where(above, _ggx_d(h, at, ab) * _ggx_g2(wi, wo, at, ab)
+                  / (4.0 * np.where(above, ci * co, 1.0)), 0.0)[..., None]
+    return mu, above, dg
 
 
 def _ggx_d(h, at, ab):
@@ -743,13 +751,7 @@ def standard_surface_eval(params, wi, wo, albedo_grid=None):
     if anisotropy > 0.0 and float(p["specular_rotation"]) != 0.0:
         turn = 2.0 * math.pi * float(p["specular_rotation"])
         wi, wo = _rotated(wi, turn), _rotated(wo, turn)
-    h = wi + wo
-    h = h / np.linalg.norm(h, axis=-1, keepdims=True)
-    mu = np.clip(np.sum(wo * h, axis=-1), 0.0, 1.0)
-    ci, co = wi[..., 2], wo[..., 2]
-    above = (ci > 0.0) & (co > 0.0)
-    dg = np.where(above, _ggx_d(h, ax, ay) * _ggx_g2(wi, wo, ax, ay)
-                  / (4.0 * np.where(above, ci * co, 1.0)), 0.0)[..., None]
+    mu, above, dg = _ggx_terms(wi, wo, ax, ay)
     metalness = float(p["metalness"])
     out = 0.0
     if metalness > 0.0:
@@ -761,6 +763,7 @@ def standard_surface_eval(params, wi, wo, albedo_grid=None):
         spec = weight * _rgb(p["specular_color"]) * dielectric_fresnel(mu, eta)[..., None] * dg
         throughput = (1.0 - weight * specular_albedo(wo, ax, ay, eta, albedo_grid)[..., None]
                       if float(p["base"]) != 0.0 else 1.0)  # no base: nothing to weigh
+        ci, co = wi[..., 2], wo[..., 2]
         s = np.sum(wi * wo, axis=-1) - ci * co
         sigma2 = float(p["diffuse_roughness"]) ** 2
         a = 1.0 - 0.5 * sigma2 / (sigma2 + 0.33)  # Oren & Nayar 1994, eq. 30
