@@ -11,17 +11,18 @@ other modules of the package (a model's formula into the dispatcher), so an edit
 could leave stale machine code behind. The cache locators below stamp every kernel of this
 package with a fingerprint of the source of all its kernel modules instead.
 
-These locators, the typing hooks below and ``_nrt=False`` reach into numba internals, so
-``pyproject.toml`` pins numba to the minor release ``tests/test_jit.py`` has passed on; widen
-the pin only after that test passes on the new one.
+These locators, the typing hooks below, the private linkage of callees and ``_nrt=False``
+reach into numba internals, so ``pyproject.toml`` pins numba to the minor release
+``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
 """
 
 import hashlib
 import os
 import re
 
+import llvmlite.binding as ll
 import numba
-from numba.core import caching, cgutils, datamodel, types
+from numba.core import caching, cgutils, codegen, datamodel, types
 from numba.extending import intrinsic
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -75,6 +76,47 @@ class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
 
 if _InTree not in caching.CacheImpl._locator_classes:
     caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
+
+
+def _private_copies(codegen_library):
+    """Patch numba's ``CPUCodeLibrary`` so that the functions linked into a library that holds
+    any of this package's code get internal linkage before it is optimised.
+
+    numba links every called function into its caller's module as a weak (``linkonce_odr``,
+    or ``weak_odr`` for a parallel loop's body) definition, and the process's dynamic linker
+    binds all calls to a function to the first definition it loaded. Two copies of a function
+    are not the same machine code: each is optimised again in its caller's module, under
+    fast-math reassociation. So a render's bytes depended on what ran before it in the
+    process: on tracing rays from Python first, or on whether its parallel loop had just
+    been compiled or came from the disk cache (the image moved by 1e-16). With private
+    copies, each kernel runs its own code, whatever was loaded before. The library's own
+    functions keep their linkage, so other modules still link against them."""
+    finalize, optimize = codegen_library.finalize, codegen_library._optimize_final_module
+
+    def finalize_owning(library):
+        library._brdf_own = {fn.name for fn in library._final_module.functions
+                             if not fn.is_declaration}
+        finalize(library)
+
+    def optimize_private(library):
+        own = getattr(library, "_brdf_own", None)
+        module = library._final_module
+        linked = [fn for fn in module.functions
+                  if not fn.is_declaration and own is not None and fn.name not in own]
+        if any(fn.name.startswith(_SYMBOL_PREFIX) for fn in module.functions):
+            for fn in linked:
+                fn.linkage = ll.Linkage.internal
+        optimize(library)
+
+    codegen_library.finalize = finalize_owning
+    codegen_library._optimize_final_module = optimize_private
+    codegen_library._brdf_private_copies = True
+
+
+# numba's mangled names spell each part of a qualified name as <length><part>
+_SYMBOL_PREFIX = "_ZN4brdf"
+if not getattr(codegen.CPUCodeLibrary, "_brdf_private_copies", False):
+    _private_copies(codegen.CPUCodeLibrary)
 
 
 def _without_literals(dispatcher):

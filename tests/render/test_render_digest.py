@@ -97,6 +97,36 @@ def test_small_render_keeps_its_bits():
         "the commit and record the new digest (--record)")
 
 
+# Traces rays through the traversal kernel from Python, then renders: numba once bound the
+# path tracer's calls to whichever copy of a shared function the process loaded first.
+_TRACE_FIRST = """
+import sys
+import numpy as np
+sys.path.insert(0, {here!r})
+import test_render_digest as T
+from brdf.render import _intersect as X
+geo = T.scene().compile().geo
+m = 64
+ray = np.zeros((X.RAY_ROWS, m))
+ray[X.ORIGIN:X.ORIGIN + 3] = np.array([[0.0], [0.0], [3.0]])
+d = np.random.default_rng(0).normal(size=(3, m))
+d[2] = -abs(d[2])
+ray[X.DIRECTION:X.DIRECTION + 3] = d / np.linalg.norm(d, axis=0)
+hit, tmax = np.full(m, -1), np.full(m, np.inf)
+X.trace_packet(geo, np.zeros(2 * X.STACK, dtype=np.int64), np.zeros(X.LANES), ray,
+               np.zeros((3, m)), np.zeros(m, dtype=np.int64), tmax, hit, False, m)
+assert (hit >= 0).any()
+print(T._digest(T._render(1)))
+"""
+
+
+def test_render_bits_do_not_depend_on_what_ran_before():
+    import subprocess
+    out = subprocess.run([sys.executable, "-c", _TRACE_FIRST.format(here=str(HERE))],
+                         capture_output=True, text=True, check=True).stdout.split()
+    assert out[-1] == _digest(_render(1)), "tracing rays from Python first moved the render"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--record", action="store_true", help=f"store the digest for {KEY}")
