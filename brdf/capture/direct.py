@@ -49,6 +49,10 @@ __all__ = ["Incidence", "ViewPixels", "gather", "pixels_of", "predict", "samples
 #: Points per pixel side of the footprint's stratified grid (2: four points at the quarter
 #: positions; the midpoint rule's error over a pixel is a quarter of the centre's).
 SUBPIXELS = 2
+#: Points of a pixel's border (corners and edge midpoints, in pixel units) that must agree with
+#: its centre on the shape hit and on the hard shadows (:func:`pixels_of`).
+BORDER = ((0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (0.0, 0.5), (1.0, 0.5), (0.0, 1.0), (0.5, 1.0),
+          (1.0, 1.0))
 #: Quadrature points per emissive shape (a jittered 8 x 8 grid over a quad's parameters or
 #: stratified over a sphere's area).
 AREA_POINTS = 64
@@ -274,46 +278,47 @@ def _centre_groups(inc, hits, n, n_sources):
 
 
 def pixels_of(view, compiled, shapes, sources):
-    """The :class:`ViewPixels` of ``view`` whose whole footprint (centre and stratified points)
-    lies on ``shapes`` (a set of scene shape indices), within the view's mask and not
-    saturated."""
+    """The :class:`ViewPixels` of ``view`` whose whole footprint lies on one of ``shapes`` (a
+    set of scene shape indices), on one side of every point, spot or directional light's
+    shadow edge, within the view's mask and not saturated.
+
+    The footprint is tested at its centre, its stratified points, and its four corners and
+    four edge midpoints (:data:`BORDER`): a silhouette or a hard shadow edge that crosses the
+    pixel separates some of these, and such a pixel, a mix the few points would predict
+    poorly, is left out (in a 96 x 72 view of a sphere on a floor, the pixels along the
+    sphere's shadow that only the centre and 2 x 2 points missed set the exposure 0.5 % low)."""
     from ..render.rays import camera_rays, first_hits
     w, h = view.size
     k = SUBPIXELS
     grid = [((i + 0.5) / k, (j + 0.5) / k) for j in range(k) for i in range(k)]
-    dirs, origin = camera_rays(view.scene.camera, w, h, [(0.5, 0.5)] + grid)
+    points = 1 + k * k
+    dirs, origin = camera_rays(view.scene.camera, w, h, [(0.5, 0.5)] + grid + list(BORDER))
     allowed = view.mask & ~view.photo.saturated
     ys, xs = np.nonzero(allowed)
     npx = len(ys)
     if npx == 0:
         return None
+    every = points + len(BORDER)
     d = dirs[:, ys, xs].reshape(-1, 3)
     hits = first_hits(compiled, origin, d)
-    on = np.isin(hits.shape, list(shapes)).reshape(1 + k * k, npx)
-    same = np.all(hits.shape.reshape(1 + k * k, npx) == hits.shape[:npx][None], axis=0)
-    keep = np.all(on, axis=0) & same
+    shape = hits.shape.reshape(every, npx)
+    keep = np.all(np.isin(shape, list(shapes)), axis=0) & np.all(shape == shape[0], axis=0)
+    delta = [i for i, (kind, _, _) in enumerate(sources) if kind in ("point", "directional")]
+    if delta and keep.any():
+        cand = np.flatnonzero(keep)
+        rows = np.concatenate([cand + j * npx for j in range(every)])
+        inc = gather(compiled, view.scene, _subset(hits, rows), [sources[i] for i in delta])
+        lit = np.zeros((len(cand), len(delta)), dtype=np.int64)
+        np.add.at(lit, (inc.owner % len(cand), inc.source), 1)
+        keep[cand[np.any((lit > 0) & (lit < every), axis=1)]] = False
     if not keep.any():
         return None
     sel = np.flatnonzero(keep)
     n = len(sel)
     # the centre rays come first, then each grid point's rays
-    rows = np.concatenate([sel + j * npx for j in range(1 + k * k)])
+    rows = np.concatenate([sel + j * npx for j in range(points)])
     sub = _subset(hits, rows)
     inc = gather(compiled, view.scene, sub, sources)
-    # a point, spot or directional light's shadow edge (or a spot's cone) across the footprint
-    # makes the pixel a mix the footprint's few points resolve poorly: such pixels are left out
-    delta = np.array([kind in ("point", "directional") for kind, _, _ in sources])
-    lit = np.zeros((n, len(sources)), dtype=np.int64)
-    np.add.at(lit, (inc.owner % n, inc.source), 1)
-    edge = np.any(delta[None] & (lit > 0) & (lit < 1 + k * k), axis=1)
-    if edge.all():
-        return None
-    if edge.any():
-        sel = sel[~edge]
-        n = len(sel)
-        rows = np.concatenate([sel + j * npx for j in range(1 + k * k)])
-        sub = _subset(hits, rows)
-        inc = gather(compiled, view.scene, sub, sources)
     wo_world = -d[rows]
     centre = inc.owner < n
     ci = Incidence(inc.owner[centre], inc.source[centre], inc.wi[centre], inc.E[centre])
