@@ -55,7 +55,7 @@ def add_parser(sub, subcommand, fit_options, arguments):
     m.add_argument("--walkers", type=arguments.integer(2, 100_000, "a walker count"),
                    metavar="N", help="emcee walkers (default: max(32, 4 x parameters))")
     m.add_argument("--max-steps", type=arguments.integer(200, 10_000_000, "a step count"),
-                   default=20000, metavar="N", help="cap on the chain length (default: 20000)")
+                   metavar="N", help="cap on the chain length (default: brdf.mcmc's, 20000)")
 
 
 def run(args, out):
