@@ -7,10 +7,10 @@ lights are known. Pixels used are those of the mask (a PNG, non-zero where used,
 alpha above one half), minus saturated pixels (a channel at the top code of an 8- or 16-bit
 file), which hold a lower bound only.
 
-Images: OpenEXR RGB or RGBA (linear, float), or PNG/TIFF RGB(A) through Pillow at 8 bits (and
-16-bit grey), decoded to linear by a :mod:`~brdf.capture.responses` response. Pillow reads
-16-bit RGB PNGs as 8-bit, so those are refused (convert them to EXR) rather than read at the
-wrong depth.
+Images: OpenEXR RGB or RGBA (linear, float); 8-bit PNG RGB(A) through Pillow; 8- or 16-bit
+TIFF RGB(A) through tifffile (the 16-bit linear TIFFs raw developers write); decoded to linear
+by a :mod:`~brdf.capture.responses` response. Pillow reads 16-bit RGB PNGs as 8-bit, so those
+are refused (save them as TIFF or EXR) rather than read at the wrong depth.
 """
 
 import os
@@ -97,7 +97,7 @@ def read_photo(path, response="linear"):
     linear = resp.decode(c)
     step = resp.slope(c) / top
     saturated = np.any(codes >= top, axis=2)
-    bits = 8 if top == 255 else 16
+    bits = 8 if top == 255.0 else 16
     return Photo(path, linear, alpha, step, saturated, bits, resp)
 
 
@@ -119,13 +119,39 @@ def _read_exr(path):
     raise FormatError(path, "channels", f"R, G and B channels (it has {', '.join(sorted(names))})")
 
 
+def _read_tiff(path):
+    """Codes (h, w, 3) as floats, the top code, and alpha or None, from an 8- or 16-bit RGB(A)
+    TIFF through tifffile (Pillow reads 16-bit RGB TIFFs at 8 bits, or not at all)."""
+    import tifffile
+    try:
+        arr = np.asarray(tifffile.imread(path))
+    except Exception as e:  # tifffile raises several types for damaged files
+        raise FormatError(path, "", f"a readable TIFF file ({' '.join(str(e).split())})") \
+            from None
+    if arr.ndim == 3 and arr.shape[0] in (3, 4) and arr.shape[2] not in (3, 4):
+        arr = np.moveaxis(arr, 0, 2)  # planar configuration: channels first
+    if arr.ndim != 3 or arr.shape[2] not in (3, 4):
+        raise FormatError(path, "", f"an RGB(A) image; its samples are shaped {arr.shape}")
+    if arr.dtype == np.uint8:
+        top = 255.0
+    elif arr.dtype == np.uint16:
+        top = 65535.0
+    else:
+        raise FormatError(path, "", f"8- or 16-bit integer samples (a float TIFF: save it as "
+                                    f"OpenEXR), got {arr.dtype}")
+    arr = arr.astype(float)
+    return arr[..., :3], top, (arr[..., 3] / top if arr.shape[2] == 4 else None)
+
+
 def _read_integer(path):
     """Codes (h, w, 3) as floats, the top code, and alpha in [0, 1] or None."""
     from PIL import Image
+    if Path(path).suffix.lower() in (".tif", ".tiff"):
+        return _read_tiff(path)
     depth = _png_depth(path)
     if depth is not None and depth[0] == 16 and depth[1] in (2, 6):
         raise FormatError(path, "IHDR", "an 8-bit RGB PNG (Pillow reads 16-bit RGB PNGs as "
-                                        "8 bits); convert a 16-bit photograph to OpenEXR")
+                                        "8 bits); save a 16-bit photograph as TIFF or OpenEXR")
     try:
         with Image.open(path) as im:
             im.load()

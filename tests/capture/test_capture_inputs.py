@@ -165,3 +165,28 @@ def test_cli_refuses_bad_views_in_one_line_with_status_2(files, capsys, case):
     assert status == 2
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("brdf-fit: error: ") and name in lines[0], err
+
+
+def test_16bit_tiff_is_read_at_full_depth_and_16bit_rgb_png_is_refused(tmp_path):
+    import tifffile
+    codes = np.zeros((3, 4, 3), np.uint16)
+    codes[1, 2] = [1000, 30000, 65535]
+    tifffile.imwrite(tmp_path / "p.tif", codes, photometric="rgb")
+    p = read_photo(tmp_path / "p.tif", "gamma:2.2")
+    assert p.bits == 16 and p.saturated[1, 2] and not p.saturated[0, 0]
+    assert p.linear[1, 2, 0] == pytest.approx((1000 / 65535) ** 2.2)
+    # a 16-bit RGB PNG written by hand (Pillow would read it at 8 bits)
+    import struct
+    import zlib
+    h, w = 2, 3
+    rows = b"".join(b"\x00" + np.full((w, 3), 4242, ">u2").tobytes() for _ in range(h))
+
+    def chunk(kind, data):
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+    (tmp_path / "p16.png").write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 16, 2, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+    with pytest.raises(FormatError) as e:
+        read_photo(tmp_path / "p16.png", "srgb")
+    _one_line(e.value, "p16.png", "TIFF")
