@@ -41,9 +41,9 @@ def add_parser(sub, subcommand, fit_options, arguments):
                    help="samples per pixel of the path method")
     p.add_argument("--max-depth", type=arguments.integer(-1, 1 << 20, "a path depth"),
                    metavar="N", help="longest path of the path method")
-    p.add_argument("--iterations", type=arguments.integer(1, 100, "a pass count"), default=4,
+    p.add_argument("--iterations", type=arguments.integer(1, 100, "a pass count"), default=8,
                    metavar="N", help="passes of the direct method's correction at most "
-                                     "(default: 4)")
+                                     "(default: 8)")
     fit_options(p)
     p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
     p.add_argument("--force", action="store_true", help="replace an existing report")

@@ -135,3 +135,35 @@ def max_relative_error(params, truth=TRUTH):
 
 __all__ = ["render_case", "scene_file", "photograph", "max_relative_error", "TRUTH", "TRUTH_SPEC",
            "FLOOR_ALBEDO"]
+
+
+def render_sky(direction, width=48, height=36, spp=256, sky=0.3, irradiance=3.0, seed=0,
+               origin=None):
+    """Mitsuba's image of the sphere under a directional light (``direction`` of travel,
+    ``irradiance`` W/m^2) and a constant environment of radiance ``sky``, direct light only;
+    ``origin`` moves the camera (a second view)."""
+    mi = _mitsuba()
+    sensor = _sensor(mi, width, height, spp)
+    if origin is not None:
+        sensor["to_world"] = mi.ScalarTransform4f().look_at(origin=origin, target=[0, 0, 0],
+                                                             up=[0, 1, 0])
+    d = {"type": "scene", "integrator": {"type": "path", "max_depth": 2}, "sensor": sensor,
+         "sphere": {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "bsdf": _bsdf()},
+         "sun": {"type": "directional", "direction": list(direction),
+                 "irradiance": {"type": "rgb", "value": [irradiance] * 3}},
+         "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [sky] * 3}}}
+    return np.array(mi.render(mi.load_dict(d), spp=spp, seed=seed), dtype=float)[..., :3]
+
+
+def sky_file(path, direction, sky=0.3, irradiance=3.0, origin=None):
+    """Our scene file of :func:`render_sky`."""
+    camera = dict(CAMERA, origin=list(origin)) if origin is not None else CAMERA
+    doc = {"camera": camera,
+           "shapes": [{"type": "sphere", "centre": [0, 0, 0], "radius": 1.0,
+                       "material": "@material"}],
+           "lights": [{"type": "directional", "direction": list(direction),
+                       "irradiance": irradiance}],
+           "environment": {"radiance": sky}}
+    with open(path, "w") as f:
+        json.dump(doc, f, indent=1)
+    return path

@@ -15,9 +15,15 @@ shadow ray included, one record per
   lights: E_q = L_e cos(theta_i) cos(theta_l) A / (N r^2), the area form of the rendering
   equation's direct term, Pharr et al., PBR 4th ed., eq. 4.9);
 - direction of a fixed stratified cosine-weighted set over the hemisphere (a constant
-  environment: E_q = L pi / M, PBR 4th ed., 13.10.1's cosine-weighted estimator).
+  environment: E_q = L pi / M, PBR 4th ed., 13.10.1's cosine-weighted estimator); these set
+  the environment's share and mean direction only.
 
-The model predicts a pixel as P = sum over records of f(wi, wo) E (averaged over the footprint).
+The model predicts a pixel as P = sum over records of f(wi, wo) E (averaged over the
+footprint), plus, for a constant environment of radiance L, L a(wo) - sum over its blocked
+directions of f E: by reciprocity the integral of f cos over all wi is the albedo a towards wo
+(the model's own cubature, tabulated over theta_o), so only what other shapes hide goes
+through the coarse direction set (64 directions alone missed a GGX lobe of alpha 0.22 by
+enough to bias the albedo 6 % under a sky a third as bright as the sun).
 A sample needs a single (wi, wo) per pixel: the centre's direction towards the pixel's
 **dominant source** (the one whose predicted share of the pixel is largest; its E-weighted mean
 direction for an area light or the environment) and that source's irradiance E*. The sample is
@@ -29,7 +35,11 @@ with f_prev the previous fit: the pixel's residual carried onto the dominant sou
 :func:`brdf.capture.fit_images` runs it). Under one point or directional light the first pass
 is Marschner's f = L / E at the pixel centre, and the further passes only remove the pixel
 footprint's averaging; several lights, area lights and the environment are handled by the same
-correction, so long as one source dominates each pixel kept (:data:`DOMINANT_SHARE`).
+correction, so long as one source dominates each pixel kept (:data:`DOMINANT_SHARE`); pixels
+the environment dominates are left out when the scene has another source (a sample at its
+mean direction stands for a whole hemisphere). The first pass takes f = L / (sum of every
+source's E), a Lambertian guess exact for one source; each pass then closes in on the fixed
+point by a factor of about -0.4 under a sky a third as bright as the sun.
 
 What ``direct`` leaves out: light reflected by other surfaces (interreflection: a diffuse floor
 under the object adds light the method attributes to the BRDF, a bias
@@ -161,8 +171,10 @@ def _offset(p, n):
 
 def gather(compiled, scene, hits, sources):
     """:class:`Incidence` of the surface points ``hits`` (a :class:`brdf.render.rays.Hits`
-    subset that all hit) from ``sources`` (:func:`_sources`)."""
+    subset that all hit) from ``sources`` (:func:`_sources`), and the environment's blocked
+    directions (as an :class:`Incidence` of the irradiance they would bring)."""
     from ..render.rays import occluded
+    dark = []
     n_pts = len(hits.t)
     p, ng, s = hits.position, hits.normal, hits.shading
     origin = _offset(p, ng)
@@ -215,13 +227,17 @@ def gather(compiled, scene, hits, sources):
         idx = np.flatnonzero(lit)
         if len(idx):
             blocked = occluded(compiled, origin[owner[idx]], wi[idx], length[idx])
+            if kind == "environment":
+                out = np.concatenate([np.flatnonzero(~lit), idx[blocked]])
+                dark.append(Incidence(owner[out], np.full(len(out), index), wi[out], E[out]))
             idx = idx[~blocked]
         owners.append(owner[idx])
         kinds.append(np.full(len(idx), index))
         wis.append(wi[idx])
         Es.append(E[idx])
-    return Incidence(np.concatenate(owners), np.concatenate(kinds), np.concatenate(wis),
-                     np.concatenate(Es))
+    inc = Incidence(np.concatenate(owners), np.concatenate(kinds), np.concatenate(wis),
+                    np.concatenate(Es))
+    return inc, (dark[0] if dark else None)
 
 
 def _local(hits, owner, v):
@@ -251,6 +267,12 @@ class ViewPixels:
         local direction and total irradiance (zeros where a source does not reach).
     shape : ndarray (n,)
         The scene shape under each pixel's centre.
+    kinds : tuple of str
+        The kind of each source (point, directional, area, environment).
+    environment : tuple or None
+        ``(pixel (p,), wo (p, 3), L (p, 3))`` per footprint point: the constant environment's
+        share L a(wo) of the prediction (L divided by the number of points), a the albedo; its
+        blocked directions are in ``footprint`` with negative E.
     """
 
     yx: np.ndarray
@@ -259,6 +281,8 @@ class ViewPixels:
     footprint: tuple
     centre: tuple
     shape: np.ndarray
+    kinds: tuple = ()
+    environment: object = None
 
     def __len__(self):
         return len(self.yx)
@@ -307,7 +331,7 @@ def pixels_of(view, compiled, shapes, sources):
     if delta and keep.any():
         cand = np.flatnonzero(keep)
         rows = np.concatenate([cand + j * npx for j in range(every)])
-        inc = gather(compiled, view.scene, _subset(hits, rows), [sources[i] for i in delta])
+        inc, _ = gather(compiled, view.scene, _subset(hits, rows), [sources[i] for i in delta])
         lit = np.zeros((len(cand), len(delta)), dtype=np.int64)
         np.add.at(lit, (inc.owner % len(cand), inc.source), 1)
         keep[cand[np.any((lit > 0) & (lit < every), axis=1)]] = False
@@ -318,20 +342,34 @@ def pixels_of(view, compiled, shapes, sources):
     # the centre rays come first, then each grid point's rays
     rows = np.concatenate([sel + j * npx for j in range(points)])
     sub = _subset(hits, rows)
-    inc = gather(compiled, view.scene, sub, sources)
+    inc, dark = gather(compiled, view.scene, sub, sources)
     wo_world = -d[rows]
     centre = inc.owner < n
     ci = Incidence(inc.owner[centre], inc.source[centre], inc.wi[centre], inc.E[centre])
     wi_c, E_c = _centre_groups(ci, sub, n, len(sources))
     wo_c = _local(sub, np.arange(n), wo_world[:n])
-    fp = ~centre
-    owner = inc.owner[fp]
-    footprint = (owner % n, _local(sub, owner, inc.wi[fp]), _local(sub, owner, wo_world[owner]),
-                 inc.E[fp] / (k * k))
+    kinds = tuple(kind for kind, _, _ in sources)
+    # the footprint's records; a constant environment enters as L times the albedo towards wo
+    # (reciprocity: the integral of f cos over wi), less its blocked directions' records
+    fp = (inc.owner >= n) & (inc.source != kinds.index("environment") if "environment" in
+                             kinds else True)
+    owner, wi_l, E = inc.owner[fp], _local(sub, inc.owner[fp], inc.wi[fp]), inc.E[fp]
+    env = None
+    if dark is not None:
+        d_fp = dark.owner >= n
+        owner = np.concatenate([owner, dark.owner[d_fp]])
+        wi_l = np.concatenate([wi_l, _local(sub, dark.owner[d_fp], dark.wi[d_fp])])
+        E = np.concatenate([E, -dark.E[d_fp]])
+        points = np.arange(n, len(rows))
+        radiance = sources[kinds.index("environment")][1]["radiance"]
+        env = (points % n, _local(sub, points, wo_world[points]),
+               np.broadcast_to(radiance / (k * k), (len(points), 3)))
+    footprint = (owner % n, wi_l, _local(sub, owner, wo_world[owner]), E / (k * k))
     yx = np.stack([ys[sel], xs[sel]], axis=1)
     value = view.photo.linear[yx[:, 0], yx[:, 1]]
     step = None if view.photo.step is None else view.photo.step[yx[:, 0], yx[:, 1]]
-    return ViewPixels(yx, value, step, footprint, (wi_c, wo_c, E_c), hits.shape[sel])
+    return ViewPixels(yx, value, step, footprint, (wi_c, wo_c, E_c), hits.shape[sel], kinds,
+                      env)
 
 
 def _subset(hits, rows):
@@ -358,19 +396,49 @@ def _rgb(model, wi, wo):
     return np.where(real[:, None], f, 0.0)
 
 
+#: Polar angles (degrees) of the albedo table that the environment's term interpolates, and
+#: azimuths for anisotropic models: the albedo is smooth in theta_o (its cubature costs 4 ms a
+#: direction, so a table beats one per pixel).
+ALBEDO_THETA = np.linspace(0.0, 90.0, 91)
+ALBEDO_PHI = np.linspace(0.0, 360.0, 25)
+
+
+def _albedo(model, wo):
+    """Directional albedo (n, 3) of ``model`` towards local directions ``wo``, linear in a
+    table over theta_o (and phi_o for anisotropic models)."""
+    from ..geometry import directions_from_degrees
+    theta = np.degrees(np.arccos(np.clip(wo[:, 2], 0.0, 1.0)))
+    aniso = getattr(model, "is_anisotropic", not getattr(model, "isotropic", True))
+    if not aniso:
+        nodes = directions_from_degrees(ALBEDO_THETA, np.zeros_like(ALBEDO_THETA))
+        a = np.asarray(model.albedo(nodes), float).reshape(len(nodes), -1)
+        a = np.broadcast_to(a, (len(nodes), 3)) if a.shape[1] == 1 else a
+        return np.stack([np.interp(theta, ALBEDO_THETA, a[:, c]) for c in range(3)], axis=1)
+    from scipy.interpolate import RegularGridInterpolator
+    t, p = np.meshgrid(ALBEDO_THETA, ALBEDO_PHI, indexing="ij")
+    a = np.asarray(model.albedo(directions_from_degrees(t.ravel(), p.ravel())), float)
+    a = a.reshape(len(ALBEDO_THETA), len(ALBEDO_PHI), -1)
+    a = np.broadcast_to(a, a.shape[:2] + (3,)) if a.shape[2] == 1 else a
+    phi = np.degrees(np.arctan2(wo[:, 1], wo[:, 0])) % 360.0
+    return RegularGridInterpolator((ALBEDO_THETA, ALBEDO_PHI), a)(np.stack([theta, phi], 1))
+
+
 def predict(pixels, model):
     """Predicted linear values (n, 3) of the pixels under ``model``: sum over the footprint's
-    records of f(wi, wo) E (the direct light only)."""
+    records of f(wi, wo) E, plus a constant environment's L a(wo) (the direct light only)."""
     pix, wi, wo, E = pixels.footprint
     out = np.zeros((len(pixels), 3))
     np.add.at(out, pix, _rgb(model, wi, wo) * E)
+    if pixels.environment is not None:
+        epix, ewo, L = pixels.environment
+        np.add.at(out, epix, _albedo(model, ewo) * L)
     return out
 
 
 def samples(pixels, model, scale=1.0, noise=None):
     """BRDF samples of the pixels: ``(wi, wo, f, sigma, keep)`` with the dominant source's
     direction pair per pixel and f from the fixed-point correction (module docstring); the
-    first pass (``model`` None) ranks sources by their irradiance and takes f = L / E*.
+    first pass (``model`` None) ranks sources by their irradiance and takes f = L / sum E.
     ``scale`` divides the pixels (a fitted exposure); ``keep`` marks the pixels kept.
 
     ``noise(value, step)`` gives a pixel's standard deviation (None: no sigma). It is taken at
@@ -391,12 +459,19 @@ def samples(pixels, model, scale=1.0, noise=None):
     total = share.sum(axis=1)
     top = share[np.arange(n), dom]
     keep = (total > 0.0) & (top >= DOMINANT_SHARE * total)
+    if "environment" in pixels.kinds and len(set(pixels.kinds)) > 1:
+        # a sample at the environment's mean direction stands for an integral over the whole
+        # hemisphere: with another source in the scene, such pixels are left out
+        keep &= dom != pixels.kinds.index("environment")
     wi = wi_c[np.arange(n), dom]
     E = E_c[np.arange(n), dom]
     keep &= np.all(E > 0.0, axis=1) & (wi[:, 2] > 0.0) & (wo_c[:, 2] > 0.0)
     Es = np.where(E > 0.0, E, 1.0)
     if model is None:
-        f = value / Es
+        # a Lambertian guess: the pixel's light from every source, f = L / sum E (exact for a
+        # diffuse surface, and for one source f = L / E*)
+        Eall = E_c.sum(axis=1)
+        f = value / np.where(Eall > 0.0, Eall, 1.0)
     else:
         f = f_g[np.arange(n), dom] + (value - P) / Es
     sigma = None
