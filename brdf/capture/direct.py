@@ -52,9 +52,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..memory import require
 
-__all__ = ["Incidence", "ViewPixels", "gather", "pixels_of", "predict", "samples", "SUBPIXELS",
-           "AREA_POINTS", "ENV_DIRECTIONS", "DOMINANT_SHARE"]
+__all__ = ["Incidence", "ViewPixels", "sources_of", "gather", "pixels_of", "predict", "samples",
+           "SUBPIXELS", "BORDER", "AREA_POINTS", "ENV_DIRECTIONS", "DOMINANT_SHARE"]
 
 #: Points per pixel side of the footprint's stratified grid (2: four points at the quarter
 #: positions; the midpoint rule's error over a pixel is a quarter of the centre's).
@@ -70,6 +71,10 @@ AREA_POINTS = 64
 ENV_DIRECTIONS = 64
 #: A pixel is kept when its dominant source carries at least this share of its predicted value.
 DOMINANT_SHARE = 0.5
+#: Peak bytes per incidence record while a view's records are gathered and turned local: the
+#: record (owner, source, wi, E: 8 numbers), its ray and shadow test, its local directions and
+#: the model's values (an upper bound, counted from the arrays gather and pixels_of make).
+RECORD_BYTES = 8 * 32
 #: Luminance weights (ITU-R BT.709) that rank sources and weight mean directions.
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 
@@ -94,7 +99,7 @@ def _stratified(n, rng):
     return u
 
 
-def _sources(scene, compiled, seed):
+def sources_of(scene, seed):
     """The direct sources of a scene: ``(kind, data, name)`` per source, area quadratures and
     environment directions drawn once from ``seed``."""
     from ..render.scene import (DirectionalLight, GoniometricLight, PointLight, Quad, Sphere,
@@ -171,7 +176,7 @@ def _offset(p, n):
 
 def gather(compiled, scene, hits, sources):
     """:class:`Incidence` of the surface points ``hits`` (a :class:`brdf.render.rays.Hits`
-    subset that all hit) from ``sources`` (:func:`_sources`), and the environment's blocked
+    subset that all hit) from ``sources`` (:func:`sources_of`), and the environment's blocked
     directions (as an :class:`Incidence` of the irradiance they would bring)."""
     from ..render.rays import occluded
     dark = []
@@ -341,6 +346,11 @@ def pixels_of(view, compiled, shapes, sources):
     n = len(sel)
     # the centre rays come first, then each grid point's rays
     rows = np.concatenate([sel + j * npx for j in range(points)])
+    per_point = sum(1 if kind in ("point", "directional") else len(data.get("points", data.get(
+        "local", ()))) for kind, data, _ in sources)
+    require(len(rows) * per_point * RECORD_BYTES,
+            f"{view.photo.path}: the direct method's light records of {n:,} pixels (mask fewer "
+            "pixels or halve the image's resolution)")
     sub = _subset(hits, rows)
     inc, dark = gather(compiled, view.scene, sub, sources)
     wo_world = -d[rows]

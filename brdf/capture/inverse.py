@@ -136,6 +136,16 @@ def _as_views(views, response, mask):
     return out
 
 
+def _sha256(path):
+    """SHA-256 of a file, read in 1 MB blocks (photographs are large)."""
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def _noise(gain, sigma):
     """sigma(value, step) of a pixel (module docstring), or a function returning None."""
     if gain is None and sigma is None:
@@ -267,6 +277,7 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
     ImageFitResult
     """
     from ..fitting import fit as _fit, mcmc as _mcmc
+    from ..render.scene import Material
     from ..spec import parse
     from ..table import Table
     from . import direct
@@ -289,7 +300,7 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
     per_view, refs, described = [], [], []
     for v in views:
         compiled = v.scene.compile()
-        sources = direct._sources(v.scene, compiled, seed)
+        sources = direct.sources_of(v.scene, seed)
         shapes = set(v.material_shapes)
         px = direct.pixels_of(v, compiled, shapes, sources)
         if px is None:
@@ -304,13 +315,17 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
                 rp = direct.pixels_of(v, compiled, {k}, sources)
                 if rp is None:
                     continue
-                from ..render.scene import Material
                 known = s.material if isinstance(s.material, Material) else Material(s.material)
                 refs.append((rp.value, rp.step, direct.predict(rp, known.resolve())))
                 n_ref += len(rp)
         per_view.append(px)
         described.append({"scene": str(v.scene_path), "image": v.photo.path,
-                          "mask": v.mask_path, "size": list(v.size),
+                          "mask": v.mask_path,
+                          "sha256": {k_: _sha256(p_) for k_, p_ in (("scene", v.scene_path),
+                                                                    ("image", v.photo.path),
+                                                                    ("mask", v.mask_path))
+                                     if p_ is not None and os.path.isfile(p_)},
+                          "size": list(v.size),
                           "response": str(v.photo.response), "bits": v.photo.bits,
                           "pixels_masked": int(v.mask.sum()),
                           "pixels_saturated": int((v.mask & v.photo.saturated).sum()),
@@ -363,8 +378,8 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
                   "relative_rmse": float(np.sqrt(np.mean(resid ** 2)) /
                                          max(float(np.sqrt(np.mean(value ** 2))), 1e-300)),
                   "mean_relative_bias": float(np.sum(resid) / max(float(np.sum(pred)), 1e-300)),
-                  "what": "photograph minus the fitted model's direct-light prediction over "
-                          "the pixels used (linear values)"}
+                  "what": "photograph minus the fitted model's direct-light prediction, over "
+                          "every pixel on the material (linear values)"}
     if noise is not None:
         s = np.concatenate([noise(np.maximum(p, 0.0), px.step) for p, px in zip(preds, per_view)])
         image_loss["chi2_per_value"] = float(np.mean((resid / np.maximum(s, 1e-300)) ** 2))

@@ -101,7 +101,8 @@ def _any_tangent(s):
 
 def first_hits(compiled, origins, directions):
     """The nearest hit of each ray (``origins``, unit ``directions`` (n, 3)) in a compiled
-    scene (:meth:`brdf.render.Scene.compile`), with the renderer's shading frame (:class:`Hits`)."""
+    scene (:meth:`brdf.render.Scene.compile`), with the renderer's shading frame
+    (:class:`Hits`)."""
     geo = compiled.geo
     origins = np.ascontiguousarray(np.broadcast_to(origins, np.shape(directions)), dtype=float)
     directions = np.ascontiguousarray(directions, dtype=float)

@@ -16,9 +16,9 @@ from capture_scenes import (FLOOR_ALBEDO, TRUTH, max_relative_error, photograph,
 
 
 def test_first_hits_on_a_sphere_match_the_closed_form():
-    scene = render.Scene(render.Camera(origin=(0, 0, 4)), [render.Sphere((0, 0, 0), 1.0, "lambert"),
-                                                          render.Quad((-3, -1, 3), (6, 0, 0),
-                                                                      (0, 0, -6), "lambert")])
+    shapes = [render.Sphere((0, 0, 0), 1.0, "lambert"),
+              render.Quad((-3, -1, 3), (6, 0, 0), (0, 0, -6), "lambert")]
+    scene = render.Scene(render.Camera(origin=(0, 0, 4)), shapes)
     c = scene.compile()
     d, o = camera_rays(scene.camera, 32, 24)
     h = first_hits(c, o, d.reshape(-1, 3))
@@ -31,9 +31,10 @@ def test_first_hits_on_a_sphere_match_the_closed_form():
     assert np.all(wo[h.hit, 2] > 0) and np.allclose(np.linalg.norm(wo[h.hit], axis=1), 1.0)
     assert np.allclose(np.sum(h.tangent[on] * h.shading[on], axis=1), 0.0, atol=1e-12)
     # straight down from above the sphere: blocked within 5, free past its side
-    assert occluded(c, np.array([[0.0, 3.0, 0.0], [2.0, 3.0, 0.0]]),
-                    np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0]]), np.array([5.0, 3.5])).tolist() \
-        == [True, False]
+    down = np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0]])
+    blocked = occluded(c, np.array([[0.0, 3.0, 0.0], [2.0, 3.0, 0.0]]), down,
+                       np.array([5.0, 3.5]))
+    assert blocked.tolist() == [True, False]
 
 
 @pytest.fixture(scope="module")
