@@ -15,8 +15,10 @@ def add_parser(sub, subcommand, fit_options, arguments):
                    "size the render size), or an 8-bit PNG/TIFF with --response. The direct "
                    "method (Marschner et al. 1999) turns every masked pixel on the material "
                    "into a BRDF sample from the known geometry and direct light, and fits them "
-                   "as brdf-fit fit does. The report (-o) is a fit report with a capture "
-                   "section. Exit status 1 when the fit did not converge.",
+                   "as brdf-fit fit does (the loss: chi-square when the noise is stated by "
+                   "--gain, --sigma or an 8-bit file, else cosine-l2). The report (-o) is a "
+                   "fit report with a capture section. Exit status 1 when the fit did not "
+                   "converge.",
                    "print the fit report as JSON")
     p.add_argument("spec", metavar="SPEC", help="the model to fit, e.g. \"lambert + ggx\"")
     p.add_argument("--view", nargs=2, action="append", required=True, metavar=("SCENE", "IMAGE"),
@@ -45,6 +47,9 @@ def add_parser(sub, subcommand, fit_options, arguments):
                    metavar="N", help="passes of the direct method's correction at most "
                                      "(default: 8)")
     fit_options(p)
+    # the library picks the loss: chi-square when the noise is stated (--gain, --sigma, 8-bit
+    # quantisation), else brdf.fit's cosine-l2; --loss still overrides it
+    p.set_defaults(loss=None)
     p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
     p.add_argument("--force", action="store_true", help="replace an existing report")
     m = p.add_argument_group("posterior (emcee)")
@@ -75,7 +80,8 @@ def run(args, out):
         free_scale=args.free_scale, mcmc=args.mcmc, seed=args.seed, response=args.response,
         mask=mask, gain=args.gain, sigma=args.sigma, iterations=args.iterations,
         spp=args.spp, max_depth=args.max_depth, walkers=args.walkers,
-        max_steps=args.max_steps, loss=args.loss, optimizer=args.optimizer,
+        max_steps=args.max_steps, **({} if args.loss is None else {"loss": args.loss}),
+        optimizer=args.optimizer,
         starts=args.starts, energy_constraint=args.energy_constraint, cutoff=args.cutoff,
         shared=args.shared, fix=assignments(args.fix), max_evals=args.max_evals)
     report = result.to_dict()

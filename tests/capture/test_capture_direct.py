@@ -175,3 +175,34 @@ def test_spot_light_profile_against_our_renderer(tmp_path):
                         progress=False)
     # measured: within 0.2 % at 512 spp; pixels across the cone's edge are left out
     assert max_relative_error(r.params) < 0.02, r.params
+
+
+def test_a_mask_limits_the_pixels_and_keeps_the_fit(case_a, tmp_path):
+    from PIL import Image
+    mask = np.zeros((48, 64), np.uint8)
+    mask[:, :32] = 255                      # the left half of the sphere only
+    Image.fromarray(mask).save(tmp_path / "left.png")
+    full = brdf.fit_images("lambert + ggx", [case_a], progress=False)
+    half = brdf.fit_images("lambert + ggx", [(*case_a, tmp_path / "left.png")], progress=False)
+    n_full, n_half = full.capture["pixels_used"], half.capture["pixels_used"]
+    assert 0.3 * n_full < n_half < 0.7 * n_full
+    assert half.capture["views"][0]["pixels_masked"] == 48 * 32
+    assert max_relative_error(half.params) < 0.02, half.params
+
+
+def test_cli_free_scale_from_a_reference_floor(tmp_path, capsys):
+    pytest.importorskip("mitsuba", reason="Mitsuba 3 renders the test images")
+    import json
+    from PIL import Image
+    from brdf_cli.main import main
+    scene = scene_file(tmp_path / "n.json", "a", floor=True)
+    linear = render_case("a", spp=128, max_depth=2, floor=True)
+    Image.fromarray(photograph(linear, 4000, 0.8, seed=3)).save(tmp_path / "n.png")
+    status = main(["fit-images", "lambert + ggx", "--view", str(scene), str(tmp_path / "n.png"),
+                   "--response", "srgb", "--gain", "4000", "--free-scale", "--json"])
+    report = json.loads(capsys.readouterr().out)
+    assert status == 0
+    s = report["capture"]["scale"]
+    assert s["free"] and abs(s["value"] - 0.8) < 4 * s["sigma"] + 0.002, s
+    assert report["loss"]["name"] == "chi-square"
+    assert max_relative_error(report["params"]) < 0.03, report["params"]
