@@ -371,6 +371,11 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         if done:
             break
     preds = [direct.predict(px, model) * k for px in per_view]
+    for d, px, p in zip(described, per_view, preds):
+        r = px.value - p
+        d["image_loss"] = {"rmse": float(np.sqrt(np.mean(r ** 2))),
+                           "relative_rmse": float(np.sqrt(np.mean(r ** 2)) / max(
+                               float(np.sqrt(np.mean(px.value ** 2))), 1e-300))}
     value = np.concatenate([px.value for px in per_view])
     pred = np.concatenate(preds)
     resid = value - pred
