@@ -17,7 +17,8 @@ chi-square (the likelihood of the stated noise); without, it is the fitter's def
 Free scale (uncalibrated exposure or light power): the photograph is k times the calibrated
 image. k is degenerate with the BRDF's amplitudes (albedo, ks) unless something of known
 reflectance is in view, as the white reference target of a lab capture is: the pixels of
-every shape with a known material (not ``@material``, not emitting) inside the mask estimate k
+every shape with a known, untextured material (not ``@material``, not emitting) inside the
+mask estimate k
 by weighted linear least squares against their direct-light prediction, k = sum(w y P) /
 sum(w P^2), var(k) = 1 / sum(w P^2) with w = 1 / sigma^2 (the Gauss-Markov estimate; from the
 residual scatter when no sigma is stated). The material's pixels are divided by k before the
@@ -312,10 +313,12 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
             for k, s in enumerate(v.scene.shapes):
                 if k in shapes or s.material is None or getattr(s, "emission", None) is not None:
                     continue
+                known = s.material if isinstance(s.material, Material) else Material(s.material)
+                if known.textures:
+                    continue  # its prediction would need the texture lookups of the renderer
                 rp = direct.pixels_of(v, compiled, {k}, sources)
                 if rp is None:
                     continue
-                known = s.material if isinstance(s.material, Material) else Material(s.material)
                 refs.append((rp.value, rp.step, direct.predict(rp, known.resolve())))
                 n_ref += len(rp)
         per_view.append(px)
