@@ -26,6 +26,13 @@ fit. Since f is linear in each lobe's amplitudes, the amplitudes a = u / k with 
 divided data determine, so the posterior draws of the amplitudes are multiplied by k / k' with
 k' drawn from N(k, var(k)) independently (the reference and the material pixels are disjoint
 data): the report's 95 % intervals carry the exposure's uncertainty.
+
+The ``path`` method (not implemented yet) is to take the same views, options and result: the
+views' masked pixels, noise model and free scale carry over, and the loss becomes the
+image-space chi-square of the photograph against the path tracer's render of the scene with
+the candidate BRDF (``spp``, ``max_depth``: interreflection included), with common random
+numbers across evaluations so that the loss is smooth in the parameters; the ``direct`` fit is
+its natural start.
 """
 
 import math
