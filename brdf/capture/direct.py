@@ -12,10 +12,11 @@ shadow ray included, one record per
 - point light (E = I cos(theta_i) / (a r^2 + b r + c), the renderer's attenuation), spot light
   (times cos^n of the angle to its axis inside the cone) and directional light (E cos);
 - point of a fixed, seeded, stratified quadrature over each emissive quad or sphere (area
-  lights: E_q = L_e cos(theta_i) cos(theta_l) A / (N r^2), the area form of the rendering
-  equation's direct term, Pharr et al., PBR 4th ed., eq. 4.9);
+  lights: E_q = L_e cos(theta_i) cos(theta_l) A / (N r^2), the direct-light integral over the
+  emitter's area with d(omega) = dA cos(theta_l) / r^2, Pharr et al., PBR 3rd ed., 5.5.3);
 - direction of a fixed stratified cosine-weighted set over the hemisphere (a constant
-  environment: E_q = L pi / M, PBR 4th ed., 13.10.1's cosine-weighted estimator); these set
+  environment: E_q = L pi / M, the estimator of L cos over a density cos / pi, PBR 3rd ed.,
+  13.6.3); these set
   the environment's share and mean direction only.
 
 The model predicts a pixel as P = sum over records of f(wi, wo) E (averaged over the
@@ -156,7 +157,7 @@ def sources_of(scene, seed):
             raise InputError("environment: the direct method takes a constant environment; "
                              "an environment map is not supported yet")
         u = _stratified(ENV_DIRECTIONS, rng)
-        # cosine-weighted directions about +z (Malley's method, PBR 4th ed. A.5.3)
+        # cosine-weighted directions about +z (Malley's method, PBR 3rd ed., 13.6.3)
         r = np.sqrt(u[:, 0])
         phi = 2.0 * math.pi * u[:, 1]
         local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
