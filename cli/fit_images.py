@@ -51,7 +51,11 @@ def add_parser(sub, subcommand, fit_options, arguments):
     # quantisation), else brdf.fit's cosine-l2; --loss still overrides it
     p.set_defaults(loss=None)
     p.add_argument("-o", "--output", metavar="REPORT", help="write the JSON report here")
-    p.add_argument("--force", action="store_true", help="replace an existing report")
+    p.add_argument("--residuals", metavar="DIR",
+                   help="write DIR/view<k>.exr per view: photograph minus the fit's prediction "
+                        "on the pixels used, with prediction and used layers")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report or residual images")
     m = p.add_argument_group("posterior (emcee)")
     m.add_argument("--mcmc", action="store_true",
                    help="sample the posterior: medians and 95%% intervals in the report "
@@ -80,7 +84,8 @@ def run(args, out):
         free_scale=args.free_scale, mcmc=args.mcmc, seed=args.seed, response=args.response,
         mask=mask, gain=args.gain, sigma=args.sigma, iterations=args.iterations,
         spp=args.spp, max_depth=args.max_depth, walkers=args.walkers,
-        max_steps=args.max_steps, **({} if args.loss is None else {"loss": args.loss}),
+        max_steps=args.max_steps, residuals=args.residuals, force=args.force,
+        **({} if args.loss is None else {"loss": args.loss}),
         optimizer=args.optimizer,
         starts=args.starts, energy_constraint=args.energy_constraint, cutoff=args.cutoff,
         shared=args.shared, fix=assignments(args.fix), max_evals=args.max_evals)

@@ -144,6 +144,26 @@ def _as_views(views, response, mask):
     return out
 
 
+def _write_residuals(folder, views, per_view, preds, force):
+    """Write each view's residual image (see :func:`fit_images`); their paths."""
+    from pathlib import Path
+    from ..render.image import write_exr
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for k, (v, px, p) in enumerate(zip(views, per_view, preds)):
+        w, h = v.size
+        pred = np.zeros((h, w, 3))
+        used = np.zeros((h, w, 3))
+        pred[px.yx[:, 0], px.yx[:, 1]] = p
+        used[px.yx[:, 0], px.yx[:, 1]] = 1.0
+        resid = np.where(used > 0.0, v.photo.linear - pred, 0.0)
+        path = folder / f"view{k}.exr"
+        write_exr(path, resid, {"prediction": pred, "used": used}, force)
+        out.append(str(path))
+    return out
+
+
 def _sha256(path):
     """SHA-256 of a file, read in 1 MB blocks (photographs are large)."""
     import hashlib
@@ -242,7 +262,7 @@ def _change(a, b):
 def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, seed=0,
                response="linear", mask=None, gain=None, sigma=None,
                iterations=DEFAULT_ITERATIONS, spp=None, max_depth=None, walkers=None,
-               max_steps=None, progress=None, **fit_options):
+               max_steps=None, residuals=None, force=False, progress=None, **fit_options):
     """Fit ``spec`` to photographs of known scenes (see the module docstring).
 
     Parameters
@@ -275,6 +295,12 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         For ``path`` (recorded).
     walkers, max_steps : int, optional
         Passed to :func:`brdf.mcmc`.
+    residuals : path, optional
+        A folder (created if missing) for one OpenEXR file per view, ``view<k>.exr``: the
+        photograph minus the fitted model's prediction on the pixels used (0 elsewhere), with
+        layers ``prediction`` and ``used`` (1 on the pixels used); existing files are replaced
+        only with ``force``.
+    force : bool
     progress : bool, optional
     **fit_options
         Passed to :func:`brdf.fit` (loss, optimizer, starts, energy_constraint, cutoff,
@@ -304,6 +330,13 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         sigma = real(sigma, "fit_images: sigma", 0.0, low_open=True)
     base = parse(spec) if isinstance(spec, str) else spec
     views = _as_views(views, response, mask)
+    if residuals is not None and not force:
+        from pathlib import Path
+        from ..errors import OutputError
+        for k in range(len(views)):
+            if (Path(residuals) / f"view{k}.exr").exists():
+                raise OutputError(f"{Path(residuals) / f'view{k}.exr'}: exists; pass "
+                                  "force=True (--force) to replace it")
     noise = _fixed_noise(_noise(gain, sigma), views)
     per_view, refs, described = [], [], []
     for v in views:
@@ -386,6 +419,8 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         d["image_loss"] = {"rmse": float(np.sqrt(np.mean(r ** 2))),
                            "relative_rmse": float(np.sqrt(np.mean(r ** 2)) / max(
                                float(np.sqrt(np.mean(px.value ** 2))), 1e-300))}
+    if residuals is not None:
+        written = _write_residuals(residuals, views, per_view, preds, force)
     value = np.concatenate([px.value for px in per_view])
     pred = np.concatenate(preds)
     resid = value - pred
@@ -422,6 +457,8 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         "scale": scale, "image_loss": image_loss,
         "options": {"spp": spp, "max_depth": max_depth, "seed": seed},
     }
+    if residuals is not None:
+        capture["residual_images"] = written
     timing = {**result.timing, "total_s": time.perf_counter() - began}
     provenance = {**result.provenance, "spec": str(base),
                   "input": {"name": "capture", "views": [d["image"] for d in described],

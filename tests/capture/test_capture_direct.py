@@ -206,3 +206,21 @@ def test_cli_free_scale_from_a_reference_floor(tmp_path, capsys):
     assert s["free"] and abs(s["value"] - 0.8) < 4 * s["sigma"] + 0.002, s
     assert report["loss"]["name"] == "chi-square"
     assert max_relative_error(report["params"]) < 0.03, report["params"]
+
+
+def test_residual_images_show_the_fit_on_the_pixels_used(case_a, tmp_path):
+    import OpenEXR
+    r = brdf.fit_images("lambert + ggx", [case_a], residuals=tmp_path / "res", progress=False)
+    (path,) = r.capture["residual_images"]
+    with OpenEXR.File(path) as f:
+        ch = f.channels()
+        resid = np.array(ch["RGB"].pixels, float)
+        used = np.array(ch["used"].pixels, float)
+        pred = np.array(ch["prediction"].pixels, float)
+    assert int(used[..., 0].sum()) == r.capture["views"][0]["pixels_on_material"]
+    on = used[..., 0] > 0
+    # small against the pixels, zero off them
+    assert np.abs(resid[on]).mean() < 0.01 * pred[on].mean()
+    assert not resid[~on].any()
+    with pytest.raises(brdf.OutputError):
+        brdf.fit_images("lambert + ggx", [case_a], residuals=tmp_path / "res", progress=False)
