@@ -116,6 +116,11 @@ class ImageFitResult(FitResult):
                          f"{s['reference_pixels']:,} reference pixels")
         if self.posterior is not None:
             lines.append(str(self.posterior))
+            widened = c["scale"].get("posterior_percentiles") or {}
+            if widened:
+                lines.append("95 % intervals with the scale's uncertainty (the report's): " +
+                             ", ".join(f"{n} [{p['2.5']:.6g}, {p['97.5']:.6g}]"
+                                       for n, p in widened.items()))
         return "\n".join(lines)
 
 
