@@ -232,6 +232,10 @@ def _assignments(items):
     return out
 
 
+#: The public name of :func:`_assignments`, for the subcommands in their own modules.
+assignments = _assignments
+
+
 def refuse_existing(args, *paths):
     """OutputError before any work if an output file exists and --force is not given."""
     from pathlib import Path
