@@ -27,8 +27,9 @@ def add_parser(sub, subcommand, fit_options, arguments):
                    help="a PNG mask (non-zero: use the pixel), once for all views or once per "
                         "view in order (default: the EXR's alpha, else every pixel)")
     p.add_argument("--method", choices=METHODS, default="direct",
-                   help="direct (pixels to samples under direct light) or path (not yet "
-                        "implemented) (default: direct)")
+                   help="direct (pixels to samples under direct light) or path (renders "
+                        "of the scene through the path tracer, interreflection included, "
+                        "started from the direct fit) (default: direct)")
     p.add_argument("--response", default="linear", metavar="RESPONSE", help=RESPONSE_HELP)
     p.add_argument("--gain", type=arguments.number(0.0, None, "photons per unit value",
                                                    low_open=True), metavar="PHOTONS",
@@ -40,9 +41,10 @@ def add_parser(sub, subcommand, fit_options, arguments):
                    help="fit one overall scale (uncalibrated exposure or light power) from "
                         "pixels of known materials in view (a reference target)")
     p.add_argument("--spp", type=arguments.integer(1, 1 << 31, "a sample count"), metavar="N",
-                   help="samples per pixel of the path method")
+                   help="samples per pixel of the path method's renders (default: about a "
+                        "million paths per view)")
     p.add_argument("--max-depth", type=arguments.integer(-1, 1 << 20, "a path depth"),
-                   metavar="N", help="longest path of the path method")
+                   metavar="N", help="longest path of the path method (default: 8)")
     p.add_argument("--iterations", type=arguments.integer(1, 100, "a pass count"), default=8,
                    metavar="N", help="passes of the direct method's correction at most "
                                      "(default: 8)")

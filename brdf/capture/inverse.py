@@ -27,12 +27,9 @@ divided data determine, so the posterior draws of the amplitudes are multiplied 
 k' drawn from N(k, var(k)) independently (the reference and the material pixels are disjoint
 data): the report's 95 % intervals carry the exposure's uncertainty.
 
-The ``path`` method (not implemented yet) is to take the same views, options and result: the
-views' masked pixels, noise model and free scale carry over, and the loss becomes the
-image-space chi-square of the photograph against the path tracer's render of the scene with
-the candidate BRDF (``spp``, ``max_depth``: interreflection included), with common random
-numbers across evaluations so that the loss is smooth in the parameters; the ``direct`` fit is
-its natural start.
+The ``path`` method (:mod:`brdf.capture.path`) starts from the direct fit and fits the
+image itself through the path tracer: interreflection included, the free scale fitted jointly
+on the rendered reference pixels, and Laplace (Gauss-Newton) intervals instead of a posterior.
 """
 
 import math
@@ -96,11 +93,14 @@ class ImageFitResult(FitResult):
         return post
 
     def interval(self, name, level=95):
-        """Central credible interval of parameter ``name`` (needs ``mcmc=True``), the free
-        scale's uncertainty included."""
-        if self.posterior is None:
+        """Central credible interval of parameter ``name``, the free scale's uncertainty
+        included: of the posterior (``mcmc=True``), or of the path method's Laplace
+        approximation."""
+        laplace = (self.capture or {}).get("laplace")
+        if self.posterior is None and laplace is None:
             raise InputError("interval: fit_images(..., mcmc=True) samples the posterior")
-        pct = self._posterior_dict()["percentiles"][name]
+        pct = (self._posterior_dict()["percentiles"] if self.posterior is not None
+               else laplace["percentiles"])[name]
         lo, hi = {68: ("16", "84"), 95: ("2.5", "97.5")}[level]
         return pct[lo], pct[hi]
 
@@ -114,6 +114,11 @@ class ImageFitResult(FitResult):
             s = c["scale"]
             lines.append(f"scale (exposure): {s['value']:.6g} +- {s['sigma']:.2g} from "
                          f"{s['reference_pixels']:,} reference pixels")
+        laplace = c.get("laplace")
+        if laplace is not None:
+            lines.append("95 % intervals (Laplace): " + ", ".join(
+                f"{n} [{p['2.5']:.6g}, {p['97.5']:.6g}]"
+                for n, p in laplace["percentiles"].items()))
         if self.posterior is not None:
             lines.append(str(self.posterior))
             widened = c["scale"].get("posterior_percentiles") or {}
@@ -280,7 +285,7 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         :class:`brdf.capture.View` objects (:func:`brdf.capture.read_view`).
     method : {"direct", "path"}
         ``direct`` (Marschner et al. 1999: pixels to samples under the direct light); ``path``
-        (image-space fitting through the path tracer) is not implemented yet.
+        (image-space least squares through the path tracer, :mod:`brdf.capture.path`).
     free_scale : bool
         Fit one overall scale (exposure or light power) from pixels of known materials in view.
     mcmc : bool
@@ -297,7 +302,8 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
     iterations : int
         Passes of the fixed-point iteration at most.
     spp, max_depth : int, optional
-        For ``path`` (recorded).
+        Samples per pixel and longest path of the ``path`` method's renders (default: about
+        two million paths per view, :func:`brdf.capture.path.default_spp`; 8).
     walkers, max_steps : int, optional
         Passed to :func:`brdf.mcmc`.
     residuals : path, optional
@@ -325,8 +331,11 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         raise InputError(f"fit_images: method must be one of {', '.join(METHODS)}, got "
                          f"{method!r}")
     if method == "path":
-        raise InputError("fit_images: method 'path' (differentiable rendering through the path "
-                         "tracer) is not implemented yet; use method='direct'")
+        return _fit_path(spec, views, free_scale=free_scale, mcmc=mcmc, seed=seed,
+                         response=response, mask=mask, gain=gain, sigma=sigma,
+                         iterations=iterations, spp=spp, max_depth=max_depth,
+                         residuals=residuals, force=force, progress=progress,
+                         began=began, **fit_options)
     seed = integer(seed, "fit_images: seed", 0)
     iterations = integer(iterations, "fit_images: iterations", 1, 100)
     if gain is not None:
@@ -471,3 +480,180 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
     fields = {f: getattr(result, f) for f in FitResult.__dataclass_fields__}
     fields.update(timing=timing, provenance=provenance)
     return ImageFitResult(**fields, capture=capture, posterior=post, table=table)
+
+
+def _model_table(model, seed):
+    """A small table of ``model``'s own values (RGB): it only gives :class:`~brdf.fitting.
+    problem.Problem` its channels when the direct method gives no samples to start from."""
+    from ..table import Table
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(2, 256, 3))
+    d[..., 2] = np.abs(d[..., 2]) + 0.1
+    wi, wo = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    f = np.broadcast_to(np.asarray(model.eval(wi, wo), float).reshape(256, -1), (256, 3))
+    return Table(wi, wo, np.ascontiguousarray(f), name="start")
+
+
+def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigma, iterations,
+              spp, max_depth, residuals, force, progress, began, **fit_options):
+    """``fit_images(method="path")``: the direct fit (where it applies) refined through the
+    path tracer (:mod:`brdf.capture.path`)."""
+    from ..fitting.mixed_problem import problem_for
+    from ..progress import stage
+    from ..properties import check
+    from ..render.scene import Material
+    from ..spec import parse
+    from . import path
+    if mcmc:
+        raise InputError("fit_images: method 'path' gives Laplace (Gauss-Newton) intervals; "
+                         "sampling its posterior (mcmc) is not available yet")
+    if spp is not None:
+        spp = integer(spp, "fit_images: spp", 1)
+    max_depth = integer(max_depth if max_depth is not None else path.DEFAULT_MAX_DEPTH,
+                        "fit_images: max_depth", -1)
+    base = parse(spec) if isinstance(spec, str) else spec
+    views = _as_views(views, response, mask)
+    if residuals is not None and not force:
+        from pathlib import Path
+        from ..errors import OutputError
+        for k in range(len(views)):
+            if (Path(residuals) / f"view{k}.exr").exists():
+                raise OutputError(f"{Path(residuals) / f'view{k}.exr'}: exists; pass "
+                                  "force=True (--force) to replace it")
+    noise = _fixed_noise(_noise(gain, sigma), views)
+    problem_options = {k: fit_options[k] for k in ("shared", "fix", "bounds") if k in fit_options}
+    try:
+        with stage("fit-images: direct start", progress):
+            start = fit_images(base, views, method="direct", free_scale=free_scale, seed=seed,
+                               gain=gain, sigma=sigma, iterations=iterations, spp=spp,
+                               max_depth=max_depth, progress=progress, **fit_options)
+        model0, k0, table = start.model, start.capture["scale"]["value"], start.table
+        start_note = "the direct method's fit"
+    except InputError as e:
+        start, model0, k0, table = None, base, 1.0, _model_table(base, seed)
+        start_note = f"the spec's values (the direct method does not apply: {e})"
+    problem = problem_for(table, model0, **problem_options)
+    yx, values, steps, described, n_ref = [], [], [], [], 0
+    for v in views:
+        compiled = v.scene.compile()
+        mats = set(v.material_shapes)
+        refs = set()
+        if free_scale:
+            for k, s in enumerate(v.scene.shapes):
+                if k in mats or s.material is None or getattr(s, "emission", None) is not None:
+                    continue
+                refs.add(k)
+        p, shape = path.material_pixels(v, compiled, mats | refs)
+        if not np.isin(shape, list(mats)).any():
+            raise InputError(f"{v.photo.path}: no pixel of the mask sees only "
+                             f'"@material" shapes (check the scene file {v.scene_path}, the '
+                             "camera and the mask)")
+        n_ref += int(np.isin(shape, list(refs)).sum())
+        yx.append(p)
+        values.append(v.photo.linear[p[:, 0], p[:, 1]])
+        steps.append(None if v.photo.step is None else v.photo.step[p[:, 0], p[:, 1]])
+        described.append({"scene": str(v.scene_path), "image": v.photo.path,
+                          "mask": v.mask_path,
+                          "sha256": {k_: _sha256(p_) for k_, p_ in (("scene", v.scene_path),
+                                                                    ("image", v.photo.path),
+                                                                    ("mask", v.mask_path))
+                                     if p_ is not None and os.path.isfile(p_)},
+                          "size": list(v.size), "response": str(v.photo.response),
+                          "bits": v.photo.bits, "pixels_masked": int(v.mask.sum()),
+                          "pixels_saturated": int((v.mask & v.photo.saturated).sum()),
+                          "pixels_on_material": int(np.isin(shape, list(mats)).sum()),
+                          "reference_pixels": int(np.isin(shape, list(refs)).sum())})
+    if free_scale and not n_ref:
+        raise InputError("free scale: no pixel of a known material (a reference target, "
+                         "e.g. a diffuse floor or a white standard) in view; without one "
+                         "the exposure cannot be told from the BRDF's albedo and ks")
+    with stage("fit-images: path", progress):
+        pf = path.fit_path(problem, views, yx, values, scale=k0, free_scale=free_scale,
+                           noise=noise, steps=steps, spp=spp, max_depth=max_depth, seed=seed,
+                           progress=progress)
+    model = pf.model
+    x = pf.x[:len(problem.free)]
+    for d, vals, pred in zip(described, values, pf.predictions):
+        r = vals - pred
+        d["image_loss"] = {"rmse": float(np.sqrt(np.mean(r ** 2))),
+                           "relative_rmse": float(np.sqrt(np.mean(r ** 2)) / max(
+                               float(np.sqrt(np.mean(vals ** 2))), 1e-300))}
+    value, pred = np.concatenate(values), np.concatenate(pf.predictions)
+    resid = value - pred
+    image_loss = {"rmse": float(np.sqrt(np.mean(resid ** 2))),
+                  "relative_rmse": float(np.sqrt(np.mean(resid ** 2)) /
+                                         max(float(np.sqrt(np.mean(value ** 2))), 1e-300)),
+                  "mean_relative_bias": float(np.sum(resid) / max(float(np.sum(pred)), 1e-300)),
+                  "chi2_per_value": pf.chi2_per_value,
+                  "what": "photograph minus the path tracer's render with the fitted model "
+                          "(times the scale), over every pixel used (linear values)"}
+    if residuals is not None:
+        per_view = [_Pixels(p) for p in yx]
+        written = _write_residuals(residuals, views, per_view, pf.predictions, force)
+    natural = problem.natural(x)
+    scale = {"free": bool(free_scale), "value": pf.scale, "sigma": pf.scale_sigma,
+             "reference_pixels": n_ref}
+    if free_scale:
+        scale["method"] = "fitted jointly with the BRDF on the rendered reference pixels"
+    laplace = {"percentiles": pf.percentiles(problem),
+               "standard_errors": pf.standard_errors(problem),
+               "names": list(problem.names), "covariance_x": pf.covariance.tolist(),
+               "x": "each free parameter, the logarithm of log-scaled ones (roughness)",
+               "method": "Gauss-Newton covariance (J^T J)^-1 of the weighted residuals at the "
+                         "optimum" + ("" if noise is not None else
+                                      ", times the residual variance per degree of freedom")}
+    capture = {
+        "method": "path",
+        "method_reference": "image-space least squares through brdf's path tracer, common "
+                            "random numbers, central-difference Jacobian (brdf.capture.path)",
+        "start": start_note,
+        "views": described, "pixels_used": int(sum(len(p) for p in yx)),
+        "iterations": pf.iterations, "renders": pf.renders,
+        "noise": {"gain": gain, "sigma": sigma,
+                  "quantisation": any(v.photo.step is not None for v in views),
+                  "model": ("none stated (unit weights)" if noise is None else
+                            "sqrt(value / gain + step^2 / 12 + sigma^2) per pixel value") +
+                           ", and the render's Monte Carlo variance"},
+        "scale": scale, "image_loss": image_loss, "laplace": laplace,
+        "options": {"spp": pf.spp, "max_depth": max_depth, "seed": seed,
+                    "relative_step": path.RELATIVE_STEP},
+    }
+    if residuals is not None:
+        capture["residual_images"] = written
+    report = check(model)
+    energy = report["energy"]
+    run = {"run": "path", "optimizer": "least_squares (trf)", "status": pf.status,
+           "loss": pf.loss, "evaluations": pf.renders, "start": problem.natural(problem.x0),
+           "end": natural}
+    base_runs = tuple(start.runs) if start is not None else ()
+    provenance = dict(start.provenance) if start is not None else {
+        "input": {}, "seed": int(seed), "options": {}}
+    provenance.update(spec=str(base), input={"name": "capture", "sha256": None,
+                                             "views": [d["image"] for d in described]})
+    params = model.params
+    timing = {"total_s": time.perf_counter() - began, "path_s": pf.seconds}
+    return ImageFitResult(
+        params=params, model=model, spec=str(model), loss=pf.loss,
+        loss_name="image chi-square" if noise is not None else "image least squares",
+        metrics={"image_relative_rmse": image_loss["relative_rmse"],
+                 "image_chi2_per_value": pf.chi2_per_value},
+        status=pf.status, converged=pf.converged, evaluations=pf.renders,
+        free=problem.names, fixed={k: v for k, v in params.items() if k not in problem.names},
+        bounds={p.name: [p.lower, p.upper] for p in problem.free},
+        runs=base_runs + (run,),
+        data={"samples_used": capture["pixels_used"],
+              "samples_total": int(sum(d["pixels_masked"] for d in described)),
+              "cutoff_deg": 90.0, "weighting": "unit" if noise is None else "1/sigma^2",
+              "what": "pixels (RGB) of the photographs"},
+        energy={"constrained": False, "holds": energy.passed, "worst_albedo": energy.worst,
+                "theta_i": energy.where["theta_i"], "phi_i": energy.where["phi_i"],
+                "channel": energy.where["channel"], "tolerance": energy.tolerance},
+        checks=report.to_dict(), provenance=provenance, timing=timing,
+        capture=capture, posterior=None, table=table)
+
+
+@dataclass
+class _Pixels:
+    """The pixel rows and columns :func:`_write_residuals` reads (``yx``)."""
+
+    yx: np.ndarray

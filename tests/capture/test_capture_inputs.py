@@ -131,12 +131,14 @@ def test_image_whose_pixels_miss_the_material_is_refused(files):
     _one_line(e.value, "image.exr", "@material")
 
 
-def test_path_method_and_free_scale_without_reference_are_refused(files):
+def test_path_mcmc_and_free_scale_without_reference_are_refused(files):
     _, scene, exr = files
-    with pytest.raises(InputError, match="not implemented"):
-        brdf.fit_images("lambert", [(scene, exr)], method="path")
-    with pytest.raises(InputError, match="reference"):
-        brdf.fit_images("lambert", [(scene, exr)], free_scale=True, progress=False)
+    with pytest.raises(InputError, match="Laplace"):
+        brdf.fit_images("lambert", [(scene, exr)], method="path", mcmc=True)
+    for method in ("direct", "path"):
+        with pytest.raises(InputError, match="reference"):
+            brdf.fit_images("lambert", [(scene, exr)], free_scale=True, method=method,
+                            progress=False)
 
 
 @pytest.mark.parametrize("case", ["grey", "mask", "nan", "scene"])
