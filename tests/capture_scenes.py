@@ -81,7 +81,15 @@ def render_case(case, width=64, height=48, spp=512, seed=0, max_depth=-1, floor=
     a diffuse floor, area light); ``floor`` adds the diffuse floor to case a (a reference
     target of known albedo); ``max_depth`` 2 renders direct light only."""
     mi = _mitsuba()
-    d = {"type": "scene", "integrator": {"type": "path", "max_depth": max_depth},
+    d = scene_dict(mi, case, width, height, spp, max_depth, floor)
+    img = mi.render(mi.load_dict(d), spp=spp, seed=seed)
+    return np.array(img, dtype=float)[..., :3]
+
+
+def scene_dict(mi, case, width, height, spp, max_depth=-1, floor=None, integrator="path"):
+    """Mitsuba's scene dictionary of :func:`render_case` (``integrator`` ``prb`` for its
+    differentiable rendering), in the variant ``mi`` has set."""
+    d = {"type": "scene", "integrator": {"type": integrator, "max_depth": max_depth},
          "sensor": _sensor(mi, width, height, spp),
          "sphere": {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "bsdf": _bsdf()}}
     if case == "a":
@@ -95,8 +103,7 @@ def render_case(case, width=64, height=48, spp=512, seed=0, max_depth=-1, floor=
         d["light"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(_light_matrix()),
                       "emitter": {"type": "area", "radiance": {"type": "rgb",
                                                                 "value": [AREA_RADIANCE] * 3}}}
-    img = mi.render(mi.load_dict(d), spp=spp, seed=seed)
-    return np.array(img, dtype=float)[..., :3]
+    return d
 
 
 def scene_file(path, case, floor=None):
@@ -133,7 +140,7 @@ def max_relative_error(params, truth=TRUTH):
     return max(abs(params[k] - v) / v for k, v in truth.items())
 
 
-__all__ = ["render_case", "scene_file", "photograph", "max_relative_error", "TRUTH", "TRUTH_SPEC",
+__all__ = ["render_case", "scene_dict", "scene_file", "photograph", "max_relative_error", "TRUTH", "TRUTH_SPEC",
            "FLOOR_ALBEDO"]
 
 
