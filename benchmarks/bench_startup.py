@@ -6,7 +6,7 @@ Run: ``python benchmarks/bench_startup.py [--repeats 5] [--cold]``
 Warm (the kernels in numba's disk cache): each command is timed as a fresh process, best and
 median of the repeats; the baselines are the bare interpreter (``python -c pass``) and, for the
 render, the same render alone in a warm process (best of the repeats), both measured in the
-same run. Targets (issue 27): ``check`` of one model under 0.5 s, and the render's overhead
+same run; ``import numpy, numba`` is the floor of any command that runs a kernel. Targets (issue 27): ``check`` of one model under 0.5 s, and the render's overhead
 (the command's wall time minus the render alone) under 0.3 s. The stages are timed inside the
 command's own code path (``brdf_cli.main.main`` with timers around the library calls it makes):
 python start (the bare interpreter), imports, argument parsing, scene compilation, kernel
@@ -43,15 +43,18 @@ def _cli():
     return shutil.which("brdf-fit") or os.path.join(os.path.dirname(sys.executable), "brdf-fit")
 
 
-def timed(cmd, repeats, env=None):
-    """``(best, median)`` wall seconds of ``repeats`` runs of ``cmd`` (exit status 0 or 1)."""
+def timed(cmd, repeats, env=None, overhead=False):
+    """``(best, median)`` wall seconds of ``repeats`` runs of ``cmd`` (exit status 0 or 1);
+    with ``overhead``, of the wall time minus the render's own ``seconds`` (``--json``)."""
     times = []
     for _ in range(repeats):
         start = time.perf_counter()
-        done = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+        done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
         times.append(time.perf_counter() - start)
         if done.returncode not in (0, 1):
             raise SystemExit(f"{' '.join(cmd)}: exit {done.returncode}\n{done.stderr.decode()}")
+        if overhead:
+            times[-1] -= json.loads(done.stdout)["seconds"]
     return min(times), statistics.median(times)
 
 
@@ -133,6 +136,8 @@ def warm(repeats):
     cli = _cli()
     py = timed([sys.executable, "-c", "pass"], repeats)
     rows = [("python -c pass (baseline)", py),
+            ("python -c 'import numpy, numba' (floor)",
+             timed([sys.executable, "-c", "import numpy, numba"], repeats)),
             ("python -c 'import brdf'", timed([sys.executable, "-c", "import brdf"], repeats)),
             ("brdf-fit --help", timed([cli, "--help"], repeats))]
     check = timed([cli, "check", SPEC], repeats)
@@ -142,6 +147,7 @@ def warm(repeats):
         timed([cli, *RENDER, "-o", out], 1)  # warm the page cache
         rend = timed([cli, *RENDER, "-o", out], repeats)
         rows.append(("brdf-fit render (Cornell 256^2 x 64)", rend))
+        own = timed([cli, *RENDER, "--json", "-o", out], repeats, overhead=True)
         runs = [_child("--stages", out) for _ in range(repeats)]
     alone = _child("--render-alone", str(repeats))["render alone"]
     print(f"{'warm, fresh process each':40s} {'best s':>7s} {'median':>7s} {'- python':>9s}")
@@ -151,6 +157,8 @@ def warm(repeats):
           f"({check[0] / 0.5:.2f}x of it)")
     print(f"render alone (warm process, best): {alone:.3f} s; the command's overhead: "
           f"{rend[0] - alone:.3f} s best, {rend[1] - alone:.3f} s median (target 0.3 s)")
+    print(f"the command's overhead against its own render (wall - its render's seconds): "
+          f"{own[0]:.3f} s best, {own[1]:.3f} s median (steadier on a busy host)")
     print(f"\nstages of 'brdf-fit {' '.join(RENDER[:3])} ...' ({repeats} runs: best, median)")
     total_best = 0.0
     for stage in STAGES:
