@@ -31,7 +31,7 @@ machine, and with a committed reference image (to rounding, on a compiler withou
 digest). The kernels are compiled with fast-math contraction and reassociation, and a cold
 compile may round some lobes' formulas differently from kernels loaded from the cache (seen
 with GGX and measured tables): compare renders of a change with all kernels cached on both
-sides. ``benchmarks/bench_render.py`` times the Cornell box against Mitsuba 3.
+sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3 (``--all``).
 """
 
 import math
