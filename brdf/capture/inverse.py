@@ -154,6 +154,32 @@ def _as_views(views, response, mask):
     return out
 
 
+def _refuse_existing_residuals(folder, n, force):
+    """OutputError when a residual image of ``n`` views would replace a file without
+    ``force``."""
+    if folder is None or force:
+        return
+    from pathlib import Path
+    from ..errors import OutputError
+    for k in range(n):
+        if (Path(folder) / f"view{k}.exr").exists():
+            raise OutputError(f"{Path(folder) / f'view{k}.exr'}: exists; pass force=True "
+                              "(--force) to replace it")
+
+
+def _describe(v):
+    """The report's entry of view ``v``: its files (with their SHA-256), size, response and
+    mask counts."""
+    return {"scene": str(v.scene_path), "image": v.photo.path, "mask": v.mask_path,
+            "sha256": {k: _sha256(p) for k, p in (("scene", v.scene_path),
+                                                  ("image", v.photo.path),
+                                                  ("mask", v.mask_path))
+                       if p is not None and os.path.isfile(p)},
+            "size": list(v.size), "response": str(v.photo.response), "bits": v.photo.bits,
+            "pixels_masked": int(v.mask.sum()),
+            "pixels_saturated": int((v.mask & v.photo.saturated).sum())}
+
+
 def _write_residuals(folder, views, per_view, preds, force):
     """Write each view's residual image (see :func:`fit_images`); their paths."""
     from pathlib import Path
@@ -344,13 +370,7 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
         sigma = real(sigma, "fit_images: sigma", 0.0, low_open=True)
     base = parse(spec) if isinstance(spec, str) else spec
     views = _as_views(views, response, mask)
-    if residuals is not None and not force:
-        from pathlib import Path
-        from ..errors import OutputError
-        for k in range(len(views)):
-            if (Path(residuals) / f"view{k}.exr").exists():
-                raise OutputError(f"{Path(residuals) / f'view{k}.exr'}: exists; pass "
-                                  "force=True (--force) to replace it")
+    _refuse_existing_residuals(residuals, len(views), force)
     noise = _fixed_noise(_noise(gain, sigma), views)
     per_view, refs, described = [], [], []
     for v in views:
@@ -376,18 +396,8 @@ def fit_images(spec, views, *, method="direct", free_scale=False, mcmc=False, se
                 refs.append((rp.value, rp.step, direct.predict(rp, known.resolve())))
                 n_ref += len(rp)
         per_view.append(px)
-        described.append({"scene": str(v.scene_path), "image": v.photo.path,
-                          "mask": v.mask_path,
-                          "sha256": {k_: _sha256(p_) for k_, p_ in (("scene", v.scene_path),
-                                                                    ("image", v.photo.path),
-                                                                    ("mask", v.mask_path))
-                                     if p_ is not None and os.path.isfile(p_)},
-                          "size": list(v.size),
-                          "response": str(v.photo.response), "bits": v.photo.bits,
-                          "pixels_masked": int(v.mask.sum()),
-                          "pixels_saturated": int((v.mask & v.photo.saturated).sum()),
-                          "pixels_on_material": len(px), "reference_pixels": n_ref,
-                          "sources": [s[2] for s in sources]})
+        described.append({**_describe(v), "pixels_on_material": len(px),
+                          "reference_pixels": n_ref, "sources": [s[2] for s in sources]})
     scale = {"free": bool(free_scale), "value": 1.0, "sigma": 0.0, "reference_pixels": 0}
     k = 1.0
     if free_scale:
@@ -513,13 +523,7 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
                         "fit_images: max_depth", -1)
     base = parse(spec) if isinstance(spec, str) else spec
     views = _as_views(views, response, mask)
-    if residuals is not None and not force:
-        from pathlib import Path
-        from ..errors import OutputError
-        for k in range(len(views)):
-            if (Path(residuals) / f"view{k}.exr").exists():
-                raise OutputError(f"{Path(residuals) / f'view{k}.exr'}: exists; pass "
-                                  "force=True (--force) to replace it")
+    _refuse_existing_residuals(residuals, len(views), force)
     noise = _fixed_noise(_noise(gain, sigma), views)
     problem_options = {k: fit_options[k] for k in ("shared", "fix", "bounds") if k in fit_options}
     try:
@@ -552,15 +556,7 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
         yx.append(p)
         values.append(v.photo.linear[p[:, 0], p[:, 1]])
         steps.append(None if v.photo.step is None else v.photo.step[p[:, 0], p[:, 1]])
-        described.append({"scene": str(v.scene_path), "image": v.photo.path,
-                          "mask": v.mask_path,
-                          "sha256": {k_: _sha256(p_) for k_, p_ in (("scene", v.scene_path),
-                                                                    ("image", v.photo.path),
-                                                                    ("mask", v.mask_path))
-                                     if p_ is not None and os.path.isfile(p_)},
-                          "size": list(v.size), "response": str(v.photo.response),
-                          "bits": v.photo.bits, "pixels_masked": int(v.mask.sum()),
-                          "pixels_saturated": int((v.mask & v.photo.saturated).sum()),
+        described.append({**_describe(v),
                           "pixels_on_material": int(np.isin(shape, list(mats)).sum()),
                           "reference_pixels": int(np.isin(shape, list(refs)).sum())})
     if free_scale and not n_ref:
