@@ -213,19 +213,19 @@ def fit_path(problem, views, yx, values, *, scale=1.0, free_scale=False, noise=N
     with task(budget, "fit-images: path", "render", progress) as meter:
         # the weights: stated noise at the prediction and the render's Monte Carlo variance,
         # in quadrature; held fixed during a solve, so that the objective is a fixed function
+        # (unit weights when no noise is stated)
         def weights(z):
+            if noise is None:
+                return np.ones_like(y)
             got = render_views(views, problem.model(z[:n]), yx, spp, max_depth, seed,
                                layers=True)
             renders[0] += len(views)
             meter.update(len(views))
             k = k_of(z)
-            sig = np.sqrt(np.concatenate([(k * k * var).ravel() for _, var in got]))
-            if noise is not None:
-                photo = np.concatenate([noise(np.maximum(k * vals, 0.0), st).ravel()
-                                        for (vals, _), st in zip(got, steps)])
-                sig = np.sqrt(photo ** 2 + sig ** 2)
-            else:
-                sig = np.ones_like(y)
+            photo = np.concatenate([noise(np.maximum(k * vals, 0.0), st).ravel()
+                                    for (vals, _), st in zip(got, steps)])
+            mc = np.concatenate([(k * k * var).ravel() for _, var in got])
+            sig = np.sqrt(photo ** 2 + mc)
             return np.maximum(sig, 1e-12 * max(float(np.abs(y).max()), 1e-300))
 
         cache = {}
