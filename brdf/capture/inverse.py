@@ -42,6 +42,7 @@ import numpy as np
 from ..arguments import integer, real
 from ..errors import InputError
 from ..fitting.nlopt_fit import FitResult
+from ..io.files import file_sha256
 
 __all__ = ["fit_images", "ImageFitResult", "METHODS", "ITERATION_TOL", "DEFAULT_ITERATIONS"]
 
@@ -171,7 +172,7 @@ def _describe(v):
     """The report's entry of view ``v``: its files (with their SHA-256), size, response and
     mask counts."""
     return {"scene": str(v.scene_path), "image": v.photo.path, "mask": v.mask_path,
-            "sha256": {k: _sha256(p) for k, p in (("scene", v.scene_path),
+            "sha256": {k: file_sha256(p) for k, p in (("scene", v.scene_path),
                                                   ("image", v.photo.path),
                                                   ("mask", v.mask_path))
                        if p is not None and os.path.isfile(p)},
@@ -198,16 +199,6 @@ def _write_residuals(folder, views, per_view, preds, force):
         write_exr(path, resid, {"prediction": pred, "used": used}, force)
         out.append(str(path))
     return out
-
-
-def _sha256(path):
-    """SHA-256 of a file, read in 1 MB blocks (photographs are large)."""
-    import hashlib
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _noise(gain, sigma):
