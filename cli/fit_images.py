@@ -72,8 +72,7 @@ def add_parser(sub, subcommand, fit_options, arguments):
 def run(args, out):
     """Fit, write the report atomically, print it; exit 1 unless converged."""
     import brdf
-    from .commands import EXIT_CHECK_FAILED, EXIT_OK, refuse_existing
-    from .commands import assignments
+    from .commands import EXIT_CHECK_FAILED, EXIT_OK, assignments, emit_report, refuse_existing
     refuse_existing(args, args.output)
     mask = None
     if args.mask:
@@ -91,14 +90,7 @@ def run(args, out):
         optimizer=args.optimizer,
         starts=args.starts, energy_constraint=args.energy_constraint, cutoff=args.cutoff,
         shared=args.shared, fix=assignments(args.fix), max_evals=args.max_evals)
-    report = result.to_dict()
-    if args.output:
-        from brdf.fitting.report import save_report
-        save_report(report, args.output, args.force)
-    if args.json:
-        out.json(report)
-    else:
-        out.text(str(result))
+    emit_report(result.to_dict(), result, args, out)
     if result.posterior is not None and not result.posterior.converged:
         return EXIT_CHECK_FAILED
     failed = not result.converged or (args.energy_constraint and not result.energy["holds"])
