@@ -368,9 +368,17 @@ class Compiled:
     ``_materials.Materials``, ``_lights.Lights``), and ``shape_of``, the index in
     ``Scene.shapes`` of each primitive (row of ``geo.prim``)."""
 
-    def __init__(self, geo, mats, lights, bounds, shape_of=None):
+    def __init__(self, geo, mats, lights, bounds, shape_of=None, materials=None, extra=()):
         self.geo, self.mats, self.lights, self.bounds = geo, mats, lights, bounds
         self.shape_of = shape_of
+        self._materials = materials or {}
+        #: the rows of ``mats`` of :meth:`Scene.compile`'s ``extra`` materials
+        self.extra = list(extra)
+
+    def material_index(self, material):
+        """The row of ``mats`` that holds ``material``, the object (or spec) some shape
+        names, or None."""
+        return self._materials.get(material if isinstance(material, str) else id(material))
 
 
 @dataclass
@@ -391,17 +399,19 @@ class Scene:
     source: str = field(default=None, compare=False)
 
     # -- compilation -----------------------------------------------------------------------------
-    def compile(self):
-        """The :class:`Compiled` arrays; :class:`InputError` for a shape, light or material
-        that does not make sense, naming it (and the scene's file)."""
+    def compile(self, extra=()):
+        """The :class:`Compiled` arrays, with the materials ``extra`` packed after the shapes'
+        (no shape shows them; the derivative images evaluate f with one);
+        :class:`InputError` for a shape, light or material that does not make sense, naming it
+        (and the scene's file)."""
         try:
-            return self._compile()
+            return self._compile(extra)
         except InputError as e:
             if self.source:
                 raise InputError(f"{self.source}: {e}") from None
             raise
 
-    def _compile(self):
+    def _compile(self, extra):
         mats = _MaterialTable()
         prims, emitters = [], []
         sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
@@ -457,8 +467,10 @@ class Scene:
             prim[i, 3] = len(emitters)
             emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
         lights = _pack_lights(self, emitters, scale)
+        shown = dict(mats.keys)
+        extra = [mats.index(m) for m in extra]
         return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)),
-                        np.array([p[3] for p in prims], dtype=np.int64))
+                        np.array([p[3] for p in prims], dtype=np.int64), shown, extra)
 
 
 def _label(item, k, kind="shape"):
