@@ -8,6 +8,12 @@ path's vertex is set up on its own, then the paths on each material are shaded t
 (:mod:`._materials`, one lobe at a time over them), and the shadow rays go through the tree
 together again. A finished path's lane takes the tile's next (pixel, sample) pair at once.
 
+With derivative images asked for (:data:`Gradient`), each path also carries the derivatives of
+its throughput and radiance in a material's parameters (forward mode): :func:`_shade_target`
+evaluates f and its gradient on that material, :func:`_carry` and :func:`_emitted` apply the
+product rule, and :func:`_settle` adds them to the pixel's sums. Without them those arrays have
+no columns and those passes do not run.
+
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
 bit whatever the number of threads.
