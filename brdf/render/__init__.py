@@ -230,6 +230,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         probe[0] = probe[1] = 1
         render_pass(*args, probe, seed, 0, 1, Sums(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
                                                    np.zeros((1, 1, 6))),
+                    None if derivatives is None else
                     Gradient(slots, np.zeros((1, 1, 3, len(slots)))))
         compile_seconds = time.perf_counter() - t0
         with task(int(spp), "render", "spp", progress, units="spp") as meter:
@@ -241,7 +242,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
             for s0 in range(0, int(spp), chunk):
                 s1 = min(int(spp), s0 + chunk)
                 render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov),
-                            Gradient(slots, dacc))
+                            None if derivatives is None else Gradient(slots, dacc))
                 meter.update(s1 - s0)
             seconds = time.perf_counter() - t0
     finally:

@@ -11,8 +11,8 @@ together again. A finished path's lane takes the tile's next (pixel, sample) pai
 With derivative images asked for (:data:`Gradient`), each path also carries the derivatives of
 its throughput and radiance in a material's parameters (forward mode): :func:`_shade_target`
 evaluates f and its gradient on that material, :func:`_carry` and :func:`_emitted` apply the
-product rule, and :func:`_settle` adds them to the pixel's sums. Without them those arrays have
-no columns and those passes do not run.
+product rule, and :func:`_settle_derivatives` adds them to the pixel's sums. Without them
+``grad`` is None, whose type makes numba leave those passes out of the compiled kernels.
 
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
@@ -261,7 +261,6 @@ Sums = namedtuple("Sums", "acc acc2 aov")
 #: Derivative images (:func:`render_pass`), of the pixels' radiance in K directions of the
 #: packed parameters of material opts[TARGET]: direction k moves the slots ``slots[k]`` (-1
 #: pads a row) together, and ``acc (h, w, 3, K)`` sums the derivatives of the paths' radiance.
-#: K = 0 renders no derivatives.
 #:
 #: The estimator is detached sampling (Zeltner et al. 2021, "Monte Carlo Estimators for
 #: Differential Light Transport", detached sampling): paths are drawn, weighed by MIS and ended exactly
@@ -298,11 +297,8 @@ def _draw(fl, state):
 
 
 @inline_kernel
-def _launch(cam, opts, seed, x, y, sample, fl, il, state, dl, j):
+def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
     """Start the path of (pixel, sample) in lane j: its stream and camera ray."""
-    for c in range(3):
-        for k in range(dl.shape[2]):
-            dl[0, c, k, j] = dl[1, c, k, j] = 0.0
     state[j] = _stream(seed, y * opts[W] + x, sample)
     ox, oy, oz, dx, dy, dz = _camera_ray(cam, opts, x, y, state, j)
     fl[O, j], fl[O + 1, j], fl[O + 2, j] = ox, oy, oz
@@ -331,16 +327,21 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     # the next pair's pixel and sample, stepped along (integer division costs tens of cycles)
     k = start % npix
     x, y, s = k % tw, k // tw, start // npix
-    derivatives = p.dl.shape[2] > 0
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
-            if derivatives:
+            if grad is not None:
                 _carry(mis, p, j)
             _bounce(opts, mis, layers, p, sums.aov, j)
         if il[ALIVE, j] and il[END, j]:
-            _settle(layers, fl, il, sums, p.dl, grad.acc, j)
+            if grad is not None:
+                _settle_derivatives(fl, il, p.dl, grad.acc, j)
+            _settle(layers, fl, il, sums, j)
         if not il[ALIVE, j] and start < total:
-            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, p.state, p.dl, j)
+            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, p.state, j)
+            if grad is not None:
+                for c in range(3):
+                    for k in range(p.dl.shape[2]):
+                        p.dl[0, c, k, j] = p.dl[1, c, k, j] = 0.0
             start += 1
             x += 1
             if x == tw:
@@ -578,22 +579,31 @@ def _bounce(opts, mis, layers, p, aov_acc, j):
 
 
 @inline_kernel
-def _settle(layers, fl, il, sums, dl, dacc, j):
-    """Add the ended path j to its pixel's running sums (and its square's, if ``layers``; its
-    derivatives ``dl`` to ``dacc``) and free its lane."""
+def _settle(layers, fl, il, sums, j):
+    """Add the ended path j to its pixel's running sums (and its square's, if ``layers``) and
+    free its lane."""
     x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
     for c in range(3):
         r = fl[RAD + c, j]
-        dropped = r != r or r == math.inf
-        if dropped:
+        if r != r or r == math.inf:
             r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
         sums.acc[y, x, c] += r
         if layers:
             sums.acc2[y, x, c] += r * r
+    il[ALIVE, j] = 0
+
+
+@inline_kernel
+def _settle_derivatives(fl, il, dl, dacc, j):
+    """Add the ended path j's derivatives to its pixel's in ``dacc`` (none where
+    :func:`_settle` drops its radiance, or where they are not finite)."""
+    x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
+    for c in range(3):
+        r = fl[RAD + c, j]
+        dropped = r != r or r == math.inf
         for k in range(dl.shape[2]):
             d = dl[1, c, k, j]
             dacc[y, x, c, k] += 0.0 if dropped or d - d != 0.0 else d
-    il[ALIVE, j] = 0
 
 
 @kernel
@@ -667,7 +677,6 @@ def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
     x0, y0, x1, y1 = tile
     total = (x1 - x0) * (y1 - y0) * (s1 - s0)
     fl, il, sh = p.fl, p.il, p.sh
-    derivatives = p.dl.shape[2] > 0
     start = 0
     while True:
         start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
@@ -676,7 +685,7 @@ def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
         trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False, PACKET)
         _draw(fl, p.state)
         shading, shadows = _vertices(opts, geo, mats, lights, p)
-        if derivatives:
+        if grad is not None:
             _emitted(p)
         if shadows > 0:
             # whole SIMD registers of lanes (eight numbers: AVX-512)
@@ -684,7 +693,7 @@ def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
                          True, min(PACKET, (shadows + 7) // 8 * 8))
         if shading > 0:
             _shade(opts, mats, p)
-            if derivatives:
+            if grad is not None:
                 _shade_target(opts, mats, grad.slots, p)
 
 
@@ -706,7 +715,9 @@ def _packet_space(nparams, nlobes, nd):
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
     """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
     ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
-    (h, w, 6); the derivative images into the :data:`Gradient` ``grad``. The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
+    (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
+    its own: numba prunes the derivatives' passes from that compilation, which cost a third
+    more of the renderer's compile time). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
     by :func:`trace_tile` in a packet of paths; a tile's pixels are its own, so the sums do not
     depend on who traced it."""
     w, h, tile = opts[W], opts[H], opts[TILE]
@@ -716,6 +727,9 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
     nlobes = 1
     for m in range(mats.mint.shape[0]):
         nlobes = max(nlobes, mats.mint[m, K1] - mats.mint[m, K0])
+    nd = 0
+    if grad is not None:
+        nd = grad.slots.shape[0]
     # each thread takes the next tile as it finishes one: numba's parallel loop would split
     # the tiles into equal shares, and on a shared host one core can run 5-18 % slower than
     # the other for seconds at a time (measured per thread on the Cornell box)
@@ -728,4 +742,4 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
             x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
             trace_tile(cam, opts, geo, mats, lights, seed,
                        (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums, grad,
-                       _packet_space(nparams, nlobes, grad.slots.shape[0]))
+                       _packet_space(nparams, nlobes, nd))
