@@ -506,8 +506,9 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
     from ..spec import parse
     from . import path
     if mcmc:
-        raise InputError("fit_images: method 'path' gives Laplace (Gauss-Newton) intervals; "
-                         "sampling its posterior (mcmc) is not available yet")
+        raise InputError("fit_images: method 'path' gives Gauss-Newton intervals widened by "
+                         "its renders' noise; sampling its posterior would take tens of "
+                         "thousands of renders (mcmc is for method 'direct')")
     if spp is not None:
         spp = integer(spp, "fit_images: spp", 1)
     max_depth = integer(max_depth if max_depth is not None else path.DEFAULT_MAX_DEPTH,
