@@ -592,7 +592,9 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
                "names": list(problem.names), "covariance_x": pf.covariance.tolist(),
                "x": "each free parameter, the logarithm of log-scaled ones (roughness)",
                "method": "Gauss-Newton sandwich covariance (J^T J)^-1 J^T diag(r^2) J "
-                         "(J^T J)^-1 of the weighted residuals r at the optimum (HC1)"}
+                         "(J^T J)^-1 of the weighted residuals r at the optimum (HC3), plus "
+                         f"the covariance of the optimum over {path.STREAM_DRAWS} other random "
+                         "streams (the renders' own Monte Carlo error)"}
     capture = {
         "method": "path",
         "method_reference": "image-space least squares through brdf's path tracer, common "
