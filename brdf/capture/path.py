@@ -254,7 +254,7 @@ def fit_path(problem, views, yx, values, *, scale=1.0, free_scale=False, noise=N
             J[:, n] = k * vals / sigma   # d(k I)/d(log k) = k I
         return J
 
-    budget = len(views) * (ROUNDS * (1 + MAX_ITERATIONS) + 2)
+    budget = len(views) * (ROUNDS * (1 + MAX_ITERATIONS) + 1 + STREAM_DRAWS)
     with task(budget, "fit-images: path", "render", progress) as meter:
         z, nfev, rounds = x0, 0, 0
         for rounds in range(1, ROUNDS + 1):
