@@ -12,7 +12,9 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
   installed): from the slider's value set in the page (as a drag moves it) to the in-plane
   curve's new data drawn at the next animation frame, the round trip through the websocket
   included; and, as the floor under it, the same round trip when the server changes one
-  two-point curve and computes nothing.
+  two-point curve and computes nothing;
+- server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
+  and phi_i change at once).
 
 Each sets ``ggx.alpha`` to a new value every time (alternating between two values would let
 nothing be cached either, but a fresh value rules it out).
@@ -49,6 +51,21 @@ def server_side(repeats, draft):
         for key, value in app.timings.items():
             views.setdefault(key, []).append(value)
     return totals, views
+
+
+def arrow_drag(repeats):
+    """Server side, seconds per draft update as the incident arrow is dragged on the 3-D lobe
+    (both angles change: one update, not one per slider)."""
+    from brdf.viz.explorer import Explorer
+    app = Explorer([SPEC])
+    app.refine = False
+    app.lobe.drag = [31.0, 10.0, 0, 0]  # warm-up
+    totals = []
+    for k in range(repeats):
+        start = time.perf_counter()
+        app.lobe.drag = [20.0 + 40.0 * (k % 13) / 13, 7.0 * k % 360, 0, k + 1]
+        totals.append(time.perf_counter() - start)
+    return totals
 
 
 # JavaScript: set the slider's value in the page as a drag does, then wait for the in-plane
@@ -154,6 +171,7 @@ def main():
         _row(f"server, {name}: all views", totals)
         for key in ("lobe", "polar", "albedo", "sphere", "slice"):
             _row(f"  of which {key}", views[key])
+    _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
     if not args.no_browser:
         times = in_browser(args.repeats)
         if times:

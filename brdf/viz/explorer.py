@@ -323,7 +323,9 @@ class Explorer:
 
         self._build_slice(pn)
         self.lobe = lobe_canvas_class()(size=420, width=420, height=420)
-        self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom",
+        self.lobe.param.watch(lambda e: self._aim(*e.new[:3]) if e.new else None, "drag")
+        self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom; drag "
+                                           "the orange tip (or Shift-drag) to move the light",
                                            margin=(0, 10))
 
         controls = pn.Column(
@@ -573,7 +575,22 @@ class Explorer:
         if not draft:
             self.update()
 
+    def _aim(self, theta, phi, final):
+        """The incident arrow dragged on the 3-D lobe to (theta, phi) degrees: both sliders
+        follow (at their steps) and the views make one update, a draft until it is let go."""
+        theta = min(89.0, max(0.0, round(float(theta) * 2) / 2))
+        phi = round(float(phi)) % 360
+        self._syncing = True  # the sliders' own watchers would update once each
+        try:
+            self.theta_slider.value, self.phi_slider.value = theta, float(phi)
+        finally:
+            self._syncing = False
+        self.theta_i, self.phi_i = theta, float(phi)
+        self.update(draft=not final)
+
     def _incidence(self, theta=None, phi=None, draft=False):
+        if getattr(self, "_syncing", False):
+            return
         if theta is not None:
             self.theta_i = float(theta)
         if phi is not None:
@@ -610,7 +627,7 @@ class Explorer:
                                                  line_color=material.colour, line_width=2)
 
     def _draw(self, data, shown):
-        from .lobe_canvas import lobe_entry
+        from .lobe_canvas import ARROW, lobe_entry
         wi = incidence(self.theta_i, self.phi_i)
         self.polar.title.text = "in-plane: r = " + ("f cos(theta_o)" if self.cosine else "f") \
             + (" (log)" if self.log else "")
@@ -660,7 +677,7 @@ class Explorer:
         self.albedo_marker.location = self.theta_i
         self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
                                      "y": [0.0, 1.1 * wi[2]]}
-        changes = {"lobes": lobes, "incident": (1.2 * wi).tolist()}
+        changes = {"lobes": lobes, "incident": (ARROW * wi).tolist()}
         if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
             # sent when the grid changes (a draft's is coarser), with the points it indexes
             changes["triangles"] = triangles.ravel().tolist()

@@ -320,6 +320,36 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert len(app.materials) == 2 and len(app.cards) == 2
 
 
+def test_dragging_the_incident_arrow_sets_both_sliders_and_every_view():
+    from brdf.viz.explorer import Explorer
+    from brdf.viz.samples import incidence
+    app = Explorer([SPEC])
+    app.refine = False
+    sphere = app.sphere_source.data["image"][0].copy()
+    updates = app._refines
+    # what the page sends while the arrow moves: a draft, one update for both angles
+    app.lobe.drag = [60.2, 44.8, 0, 1]
+    assert (app.theta_i, app.phi_i) == (60.0, 45.0) == (app.theta_slider.value,
+                                                         app.phi_slider.value)
+    assert app._refines == updates + 1
+    np.testing.assert_allclose(app.lobe.incident, 1.2 * incidence(60.0, 45.0), atol=1e-12)
+    assert app.albedo_marker.location == 60.0
+    assert not np.array_equal(app.sphere_source.data["image"][0], sphere)
+    # the in-plane curve is the one of the new incidence
+    _, f = view_data.polar_curve(app.materials[0].model, incidence(60.0, 45.0), cosine=True)
+    r = f.mean(axis=-1) / f.mean(axis=-1).max()
+    got = app.materials[0].polar_source.data
+    np.testing.assert_allclose(np.hypot(got["x"], got["y"]), r, rtol=1e-9)
+    # let go: the full update; the same values sent again still update (a new serial)
+    app.refine = True
+    app.lobe.drag = [60.2, 44.8, 1, 2]
+    assert app._refines == updates + 2 and app.refine_thread is not None
+    app.refine_thread.join(120)
+    # phi wraps, theta stops above the horizon
+    app.lobe.drag = [95.0, 359.7, 1, 3]
+    assert (app.theta_i, app.phi_i) == (89.0, 0.0)
+
+
 # -- in a headless browser --------------------------------------------------------------------
 
 def _browser():
@@ -376,6 +406,21 @@ def _sphere(driver):
 
 def _canvas(driver, canvas):
     return driver.execute_script("return arguments[0].toDataURL()", canvas)
+
+
+def _lobe_target(lobe, theta, phi):
+    """Canvas pixels where the 3-D lobe draws the incident arrow's tip for (theta, phi)
+    degrees, and its depth (negative: in front): the view's turn (yaw about the normal, then pitch about the screen's x axis) and
+    its projection, written out here from the view's description."""
+    yaw, pitch, zoom = (float(v) for v in lobe.get_attribute("data-view").split(","))
+    t, f = math.radians(theta), math.radians(phi)
+    p = 1.2 * np.array([math.sin(t) * math.cos(f), math.sin(t) * math.sin(f), math.cos(t)])
+    x = math.cos(yaw) * p[0] - math.sin(yaw) * p[1]
+    y = math.sin(yaw) * p[0] + math.cos(yaw) * p[1]
+    depth, up = math.cos(pitch) * y - math.sin(pitch) * p[2], math.sin(pitch) * y \
+        + math.cos(pitch) * p[2]
+    scale = 0.42 * 420 * zoom
+    return 210 + scale * x, 0.62 * 420 - scale * up, depth
 
 
 def _text(driver):
@@ -464,6 +509,21 @@ def test_page_in_a_headless_browser():
         ActionChains(driver).move_to_element_with_offset(plot, -60, -40).click_and_hold() \
             .move_by_offset(-40, 0).release().perform()
         _wait(lambda: app.theta_i != 30.0)
+        # drag the incident arrow's tip on the 3-D lobe to where the page draws the direction
+        # theta 60 at the phi (of four) nearest the viewer, projected here from the page's
+        # view angles independently of its own inverse: both sliders and the views follow
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", lobe)
+        phi = min((45.0, 135.0, 225.0, 315.0), key=lambda p: _lobe_target(lobe, 60.0, p)[2])
+        target = _lobe_target(lobe, 60.0, phi)
+        tip = [float(v) for v in lobe.get_attribute("data-incident-tip").split(",")]
+        size = lobe.size
+        ActionChains(driver).move_to_element_with_offset(
+            lobe, tip[0] - size["width"] / 2, tip[1] - size["height"] / 2).click_and_hold() \
+            .move_by_offset((target[0] - tip[0]) / 2, (target[1] - tip[1]) / 2) \
+            .move_by_offset(target[0] - tip[0] - (target[0] - tip[0]) / 2,
+                            target[1] - tip[1] - (target[1] - tip[1]) / 2).release().perform()
+        _wait(lambda: abs(app.theta_i - 60.0) < 1.5 and abs(app.phi_i - phi) < 2.0)
+        assert (app.theta_slider.value, app.phi_slider.value) == (app.theta_i, app.phi_i)
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
