@@ -51,6 +51,8 @@ DRAFT_SPHERE_SIZE = 64
 #: Pixels across the theta_h / theta_d slice, full and draft, and the decades its log colours
 #: span under the peak (as brdf.viz.slice_plot).
 SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
+#: The slice selector's entry that follows the first material shown.
+FIRST_SHOWN = "first material shown"
 #: Samples per pixel of the path-traced sphere that replaces the preview once the sliders
 #: rest (64 at 128 x 128: about 0.25 s for lambert + ggx on this machine).
 REFINE_SPP = 64
@@ -84,7 +86,7 @@ def material_from(subject):
     return brdf.parse(text)
 
 
-@dataclass
+@dataclass(eq=False)  # the same material is the same object (the slice selector's values)
 class Material:
     """One material in the explorer: what it draws, its label and colour, whether it shows."""
 
@@ -95,6 +97,16 @@ class Material:
     solo: bool = False
     widgets: list = field(default_factory=list)
     albedo_cache: tuple = None
+
+
+def _short_name(material):
+    """A material's name that its sliders do not change: its lobes' families, or the table's
+    file name."""
+    model = material.model
+    if is_table(model):
+        return os.path.basename(material.label)[:40]
+    names = model.lobe_names() if hasattr(model, "lobe_names") else [model.name]
+    return " + ".join(names)[:40]
 
 
 def _message(exc):
@@ -150,6 +162,7 @@ class Explorer:
         self.materials.append(material)
         self._material_card(material)
         self._add_glyphs(material)
+        self._slice_options()
         return material
 
     def add_from_text(self, text):
@@ -174,7 +187,25 @@ class Explorer:
         self.cards.remove(m.card)
         for glyph in (m.polar_glyph, m.albedo_glyph, m.albedo_band, m.samples_glyph):
             glyph.visible = False
+        self._slice_options()
         self.update()
+
+    def _slice_options(self):
+        """The slice selector's entries: the first material shown, then every material by
+        number and name (its families or file, which stay as its sliders move); a removed
+        material's choice falls back to the first."""
+        chosen = self._slice_entries.get(self.slice_select.value)
+        # the page's list holds labels: Panel sends the browser strings, not Python objects
+        self._slice_entries = {f"{k + 1}: {_short_name(m)}": m
+                               for k, m in enumerate(self.materials)}
+        value = next((label for label, m in self._slice_entries.items() if m is chosen),
+                     FIRST_SHOWN)
+        self._syncing_slice = True
+        try:
+            self.slice_select.param.update(options=[FIRST_SHOWN, *self._slice_entries],
+                                           value=value)
+        finally:
+            self._syncing_slice = False
 
     def _add_from_page(self):
         """The text box's material, added on the document's next tick: new plot glyphs must be
@@ -200,8 +231,9 @@ class Explorer:
     # -- computation ------------------------------------------------------------------------
 
     def view_data(self, material, draft=False):
-        """The arrays every view draws for ``material`` at the current incidence (timed);
-        a ``draft`` has a coarser albedo curve and a smaller sphere."""
+        """The arrays every view draws for ``material`` at the current incidence (timed),
+        but the slice (:meth:`slice_material`); a ``draft`` has a coarser albedo curve and a
+        smaller sphere."""
         thetas = DRAFT_ALBEDO_THETA if draft else ALBEDO_THETA
         wi = incidence(self.theta_i, self.phi_i)
         model, out, times = material.model, {}, {}
@@ -228,12 +260,16 @@ class Explorer:
         out["sphere"] = view_data.sphere_preview(
             model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
         times["sphere"] = time.perf_counter() - start
-        if material is self._shown()[0]:  # the slice shows the first material shown
-            start = time.perf_counter()
-            out["slice"] = view_data.slice_image(model, self.phi_d,
-                                                 DRAFT_SLICE_SIZE if draft else SLICE_SIZE)
-            times["slice"] = time.perf_counter() - start
         return out, times
+
+    def slice_material(self):
+        """The material the theta_h / theta_d slice shows: the one chosen in the page's
+        *slice of* list (shown or not), else the first material shown; None when none is."""
+        chosen = self._slice_entries.get(self.slice_select.value)
+        if chosen is not None and any(m is chosen for m in self.materials):
+            return chosen
+        shown = self._shown()
+        return shown[0] if shown else None
 
     def update(self, draft=False):
         """Recompute every view of every material and push the arrays to the page.
@@ -253,7 +289,14 @@ class Explorer:
                     data[id(m)], times = self.view_data(m, draft)
                     for key, value in times.items():
                         timings[key] = timings.get(key, 0.0) + value
+            sliced, image = self.slice_material(), None
+            if sliced is not None:
+                begin = time.perf_counter()
+                image = view_data.slice_image(sliced.model, self.phi_d,
+                                              DRAFT_SLICE_SIZE if draft else SLICE_SIZE)
+                timings["slice"] = time.perf_counter() - begin
         self._draw(data, shown)
+        self._draw_slice(sliced, image)
         timings["total"] = time.perf_counter() - start
         self._refines = getattr(self, "_refines", 0) + 1
         if not draft and shown and self.refine:
@@ -335,12 +378,12 @@ class Explorer:
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
-                          pn.Row(self.sphere, pn.Column(self.phi_d_slider, self.slice)))
+                          pn.Row(self.sphere, pn.Column(self.slice_select, self.phi_d_slider, self.slice)))
         self.layout = pn.Row(controls, views, name="brdf explorer")
 
     def _build_slice(self, pn):
-        """The theta_h / theta_d image of the first material shown, log colour, in the MERL
-        layout (sqrt theta_h across), with its phi_d slider."""
+        """The theta_h / theta_d image of a material (:meth:`slice_material`), log colour, in
+        the MERL layout (sqrt theta_h across), with its material selector and phi_d slider."""
         from bokeh.models import ColorBar, ColumnDataSource, LogColorMapper
         from bokeh.palettes import Magma256
         from bokeh.plotting import figure
@@ -349,6 +392,11 @@ class Explorer:
                                                    end=180.0, step=1.0, value=self.phi_d,
                                                    width=300)
         self.phi_d_slider.param.watch(self._phi_d, ["value", "value_throttled"])
+        self._slice_entries = {}
+        self.slice_select = pn.widgets.Select(label="slice of", options=[FIRST_SHOWN],
+                                              value=FIRST_SHOWN, width=300)
+        self.slice_select.param.watch(
+            lambda e: None if getattr(self, "_syncing_slice", False) else self.update(), "value")
         self.slice = figure(title="theta_h / theta_d slice", width=340, height=300,
                             x_range=(0, 1), y_range=(0, 90), tools="save,hover",
                             name="slice", tooltips=[("f_r", "@image")])
@@ -687,10 +735,8 @@ class Explorer:
         self.sphere.frame_width = SPHERE_PIXELS * count
         self.sphere_source.data = {"image": images, "x": xs, "dw": [1.0] * len(images)}
         self.sphere.title.text = "lit sphere (direct light)"
-        self._draw_slice(data, shown)
 
-    def _draw_slice(self, data, shown):
-        image = data[id(shown[0])].get("slice") if shown else None
+    def _draw_slice(self, material, image):
         if image is None:
             self.slice_source.data = {"image": []}
             self.slice.title.text = "theta_h / theta_d slice"
@@ -702,7 +748,7 @@ class Explorer:
         self.slice_source.data = {"image": [f]}
         # the material by number: a title that changes length as a slider moves would have
         # the page lay the figure out again at every move
-        number = self.materials.index(shown[0]) + 1
+        number = next(k for k, m in enumerate(self.materials) if m is material) + 1
         self.slice.title.text = f"slice of material {number}, phi_d = {self.phi_d:g}"
 
     def _repr_mimebundle_(self, include=None, exclude=None):

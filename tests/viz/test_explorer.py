@@ -320,6 +320,35 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert len(app.materials) == 2 and len(app.cards) == 2
 
 
+def test_the_slice_shows_the_material_chosen_in_its_list():
+    from brdf.viz.explorer import FIRST_SHOWN, Explorer
+    app = Explorer(["ggx(alpha=0.1)", SPEC])
+    app.refine = False
+
+    def shown_slice(model):
+        expected = view_data.slice_image(model, app.phi_d, 90).mean(axis=-1)
+        got = app.slice_source.data["image"][0]
+        return np.allclose(np.where(expected > 0, expected, np.nan), got, equal_nan=True,
+                           rtol=1e-12)
+
+    assert list(app.slice_select.options) == [FIRST_SHOWN, "1: ggx", "2: lambert + ggx"]
+    assert shown_slice(app.materials[0].model) and "material 1" in app.slice.title.text
+    app.slice_select.value = "2: lambert + ggx"
+    assert shown_slice(app.materials[1].model) and "material 2" in app.slice.title.text
+    # it follows that material's sliders, and stays when it is hidden
+    app.set_parameter(1, "ggx.alpha", 0.5)
+    assert shown_slice(app.materials[1].model)
+    app._visibility(app.materials[1], visible=False)
+    assert shown_slice(app.materials[1].model)
+    # a third material joins the list; removing the chosen one falls back to the first shown
+    app.add("beckmann(alpha=0.3)")
+    assert list(app.slice_select.options)[-1] == "3: beckmann"
+    app.remove(1)
+    assert app.slice_select.value == FIRST_SHOWN
+    assert list(app.slice_select.options) == [FIRST_SHOWN, "1: ggx", "2: beckmann"]
+    assert shown_slice(app.materials[0].model) and "material 1" in app.slice.title.text
+
+
 def test_dragging_the_incident_arrow_sets_both_sliders_and_every_view():
     from brdf.viz.explorer import Explorer
     from brdf.viz.samples import incidence
@@ -485,6 +514,14 @@ def test_page_in_a_headless_browser():
         box.send_keys("beckmann(alpha=0.3)", Keys.ENTER)
         _wait(lambda: driver.execute_script(_MODEL, "polar-1"))
         assert len(app.materials) == 2
+        # the slice of the second material, chosen in the page's list
+        from selenium.webdriver.support.select import Select
+        choice = _wait(lambda: [e for e in driver.execute_script(_DEEP, "select")
+                                if "2: beckmann" in e.text])[0]
+        Select(choice).select_by_visible_text("2: beckmann")
+        _wait(lambda: "material 2" in driver.execute_script(
+            _MODEL.replace("return ", "const m = ") + "; return m.title.text", "slice"))
+        assert app.slice_material() is app.materials[1]
         # a measured file typed in: its samples drawn in the page
         box.clear()
         box.send_keys(str(ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"), Keys.ENTER)
