@@ -478,8 +478,8 @@ class Explorer:
         material.fit_spec = pn.widgets.TextInput(value=DEFAULT_FIT, width=220,
                                                  placeholder="a spec to fit")
         material.fit_button = pn.widgets.Button(label="fit", width=60)
-        material.fit_progress = pn.indicators.Progress(active=False, value=-1, visible=False,
-                                                       width=280)
+        material.fit_progress = pn.indicators.Progress(active=False, value=-1, max=100,
+                                                       visible=False, width=280)
         material.fit_status = pn.pane.Markdown("", css_classes=["brdf-fit-status"])
         material.fit_button.on_click(lambda e: self.start_fit(material))
         return [pn.Row(material.fit_spec, material.fit_button), material.fit_progress,
@@ -533,16 +533,20 @@ class Explorer:
         spec = material.fit_spec.value if spec is None else spec
         options.setdefault("seed", 0)
         material.fit_button.disabled = True
-        material.fit_progress.param.update(visible=True, active=True)
+        # indeterminate until the first fraction arrives
+        material.fit_progress.param.update(visible=True, active=True, value=-1)
         material.fit_status.object = f"fitting `{spec}` ..."
         state = {"last": 0.0, "start": time.perf_counter()}
 
         def progress(done, total):
+            # done / total: the fraction of the fit's planned runs behind it (brdf.progress;
+            # an energy refinement after them stays at 100)
             now = time.perf_counter()
-            if now - state["last"] >= PROGRESS_EVERY:
-                state["last"] = now
-                text = f"fitting `{spec}`: {done} evaluations, {now - state['start']:.1f} s"
-                self._soon(lambda: setattr(material.fit_status, "object", text))
+            percent = min(100, int(100 * done / total)) if total else 0
+            if now - state["last"] >= PROGRESS_EVERY or (percent == 100 != state.get("sent")):
+                state["last"], state["sent"] = now, percent
+                text = f"fitting `{spec}`: {percent}% ({now - state['start']:.1f} s)"
+                self._soon(lambda: self._fit_progress(material, percent, text))
 
         def run():
             import brdf
@@ -558,6 +562,12 @@ class Explorer:
         material.fit_thread = thread
         thread.start()
         return thread
+
+    def _fit_progress(self, material, percent, text):
+        if material.fit_thread is None or not material.fit_thread.is_alive():
+            return  # a late update from a fit that has ended
+        material.fit_progress.param.update(value=percent, active=False)
+        material.fit_status.object = text
 
     def _fit_ended(self, material, result, message):
         material.fit_button.disabled = False

@@ -248,8 +248,14 @@ def test_a_fit_in_the_background_adds_the_fitted_model_and_exports_it():
     from brdf.viz.explorer import Explorer
     table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
     app = Explorer([str(table)])
+    shown, texts = [], []
+    app.materials[0].fit_progress.param.watch(lambda e: shown.append(e.new), "value")
+    app.materials[0].fit_status.param.watch(lambda e: texts.append(e.new), "object")
     app.start_fit(0, "lambert + beckmann").join(120)
     assert len(app.materials) == 2 and not app.error.visible
+    # the percentage of the fit's planned runs, counting up to 100 before it ends
+    assert shown == sorted(shown) and 0 <= shown[0] < 100 == shown[-1] and len(set(shown)) >= 2
+    assert "fitting `lambert + beckmann`: 100% (" in texts[-2]
     # the same fit as the library's, run here on the same data and options
     expected = brdf.fit(brdf.read(table), "lambert + beckmann", seed=0, progress=False)
     assert app.materials[1].model == expected.model
@@ -533,6 +539,12 @@ def test_page_in_a_headless_browser():
         button = _wait(lambda: [b for b in driver.execute_script(_DEEP, "button")
                                 if b.text.strip() == "fit"])[0]
         button.click()
+        # the page's progress bar shows the fit's percentage (no value: indeterminate)
+        percent = _wait(lambda: [float(e.get_dom_attribute("value"))
+                                 for e in driver.execute_script(_DEEP, "progress")
+                                 if e.get_dom_attribute("value") not in (None, "", "0")],
+                        timeout=60)
+        assert 0 < percent[0] <= 100
         _wait(lambda: "fitted in" in _text(driver), timeout=120)
         _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
         assert len(app.materials) == 4 and app.materials[3].fit.converged
