@@ -153,11 +153,12 @@ class Explorer:
 
     # -- materials --------------------------------------------------------------------------
 
-    def add(self, subject):
-        """Add a material (see :func:`material_from`); errors propagate."""
+    def add(self, subject, label=None):
+        """Add a material (see :func:`material_from`), a table under ``label`` if given (else
+        its path); errors propagate."""
         model = material_from(subject)
         colour = COLOURS[len(self.materials) % len(COLOURS)]
-        label = str(subject) if is_table(model) else str(model)
+        label = (label or str(subject)) if is_table(model) else str(model)
         material = Material(model, label, colour)
         self.materials.append(material)
         self._material_card(material)
@@ -165,21 +166,46 @@ class Explorer:
         self._slice_options()
         return material
 
-    def add_from_text(self, text):
+    def add_from_text(self, text, label=None, hide=None):
         """Add the material ``text`` names, as the page's text box does: an error shows its one
-        line in the page instead of raising. True when the material was added."""
+        line in the page instead of raising (less the text ``hide``, a folder the user never
+        saw). True when the material was added."""
         count = len(self.materials)
         try:
-            self.add(text)
+            self.add(text, label)
             self.update()
         except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
             if len(self.materials) > count:  # added, but its views cannot be drawn
                 self.remove(count)
-            self.error.object = _message(exc)
+            message = _message(exc)
+            self.error.object = message.replace(hide, "") if hide else message
             self.error.visible = True
             return False
         self.error.object, self.error.visible = "", False
         return True
+
+    def upload(self, filename, data):
+        """Add the measured file or JSON fit report ``data`` (bytes) uploaded from the browser
+        as ``filename``, as :meth:`add_from_text` does with a path: saved under its own name
+        in this explorer's folder of uploads (formats are told by extension, then content),
+        a bad file's one line in the page. True when the material was added."""
+        import tempfile
+        if self._uploads is None:
+            # removed with the explorer (and at exit): tables may read their file lazily
+            self._uploads = tempfile.TemporaryDirectory(prefix="brdf-explore-")
+        name = os.path.basename(str(filename or "").replace("\\", "/")) or "upload"
+        folder = tempfile.mkdtemp(dir=self._uploads.name)  # two uploads of one name coexist
+        path = os.path.join(folder, name)
+        with open(path, "wb") as out:
+            out.write(bytes(data or b""))
+        return self.add_from_text(path, label=name, hide=folder + os.sep)
+
+    def _upload_from_page(self, event):
+        """The file input's file, added on the document's next tick (see _add_from_page)."""
+        if event.new is None:
+            return
+        name, data = self.upload_input.filename, event.new
+        self._soon(lambda: self.upload(name, data))
 
     def remove(self, index):
         """Remove material number ``index`` (its card and glyphs) and update."""
@@ -327,6 +353,9 @@ class Explorer:
         self.add_button = pn.widgets.Button(label="add", color="primary")
         self.add_button.on_click(lambda e: self._add_from_page())
         self.spec_input.param.watch(lambda e: self._add_from_page(), "enter_pressed")
+        self._uploads = None
+        self.upload_input = pn.widgets.FileInput(multiple=False, width=300)
+        self.upload_input.param.watch(self._upload_from_page, "value")
         self.error = pn.pane.Alert("", alert_type="danger", visible=False,
                                    css_classes=["brdf-error"])
         self.cards = pn.Column(sizing_mode="stretch_width")
@@ -375,6 +404,8 @@ class Explorer:
             pn.pane.Markdown("### Incidence"), self.theta_slider, self.phi_slider,
             pn.Row(self.cosine_box, self.log_box),
             pn.pane.Markdown("### Materials"), pn.Row(self.spec_input, self.add_button),
+            pn.pane.Markdown("or upload a measured file or a JSON fit report:",
+                             margin=(0, 10)), self.upload_input,
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),

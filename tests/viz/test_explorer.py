@@ -326,6 +326,46 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert len(app.materials) == 2 and len(app.cards) == 2
 
 
+def test_uploads_add_a_measured_file_or_a_fit_report_and_refuse_a_bad_file(tmp_path):
+    from brdf.viz.explorer import Explorer
+    app = Explorer(["ggx(alpha=0.2)"])
+    app.refine = False
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    data = table.read_bytes()
+    # what the page's file input sends: the file's name and bytes
+    app.upload_input.param.update(filename="paper_white_rgb.bsdf", value=data)
+    assert len(app.materials) == 2 and not app.error.visible
+    m = app.materials[1]
+    assert m.label == "paper_white_rgb.bsdf" and m.card.title == "paper_white_rgb.bsdf"
+    # the same samples as the library reads from the original file
+    expected = brdf.read(table)
+    np.testing.assert_array_equal(m.model.values, expected.values)
+    assert len(m.samples_source.data["x"]) > 10
+    # a fit report: its model
+    report = tmp_path / "fit.json"
+    brdf.fit(brdf.measure("lambert(albedo=0.4)", "inplane:15"), "lambert", starts=1,
+             progress=False).save(report)
+    assert app.upload("fit.json", report.read_bytes()) is True
+    assert app.materials[2].model == brdf.load_report(report).model
+    # a truncated file and a file of no known format: the library's one line, naming the
+    # file as uploaded (not the server's folder), nothing added, the page still answers
+    for name, payload in (("paper_white_rgb.bsdf", data[:len(data) // 3]),
+                          ("notes.txt", b"hello"), ("fit.json", b"{")):
+        assert app.upload(name, payload) is False
+        message = app.error.object
+        assert message.startswith(name) and "\n" not in message and "brdf-explore-" not in message
+        assert len(app.materials) == 3
+    # the message is the library's own for that file, with the name as uploaded
+    truncated = tmp_path / "x.bsdf"
+    truncated.write_bytes(data[:len(data) // 3])
+    with pytest.raises(brdf.errors.FormatError) as refused:
+        brdf.read(truncated)
+    assert app.upload("x.bsdf", truncated.read_bytes()) is False
+    assert app.error.object == " ".join(str(refused.value).split()).replace(
+        str(truncated), "x.bsdf")
+    assert app.add_from_text("beckmann(alpha=0.3)") and not app.error.visible
+
+
 def test_the_slice_shows_the_material_chosen_in_its_list():
     from brdf.viz.explorer import FIRST_SHOWN, Explorer
     app = Explorer(["ggx(alpha=0.1)", SPEC])
@@ -472,7 +512,7 @@ return parts.join(' ');""")
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_page_in_a_headless_browser():
+def test_page_in_a_headless_browser(tmp_path):
     from brdf.viz.explorer import explore
     from selenium.webdriver import ActionChains, Keys
     driver = _browser()
@@ -549,6 +589,20 @@ def test_page_in_a_headless_browser():
         _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
         assert len(app.materials) == 4 and app.materials[3].fit.converged
         assert str(app.materials[3].model).startswith("lambert(albedo=[")
+        # upload files through the page's file input: a truncated one is refused with the
+        # library's line naming it, then a good one joins with its samples
+        table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+        bad = tmp_path / "cut.bsdf"
+        bad.write_bytes(table.read_bytes()[:5000])
+        upload = driver.execute_script(_DEEP, "input[type=file]")[0]
+        upload.send_keys(str(bad))
+        _wait(lambda: "cut.bsdf" in _text(driver) and app.error.visible)
+        assert app.error.object.startswith("cut.bsdf") and len(app.materials) == 4
+        upload.send_keys(str(table))
+        _wait(lambda: driver.execute_script(
+            "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+            "'samples-4'); return s && s.data.x.length > 10"))
+        assert app.materials[4].label == "paper_white_rgb.bsdf" and not app.error.visible
         # dragging in the polar plot moves the incident direction (last: the
         # measured samples above were taken at theta_i = 30)
         plot = _wait(lambda: [c for c in driver.execute_script(_DEEP, "canvas")
