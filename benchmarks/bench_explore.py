@@ -6,7 +6,7 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
 
 - server side: ``Explorer.set_parameter`` (a new model from the slider's value, then every
   view's arrays recomputed and pushed to the document: lobe mesh, in-plane curve, albedo curve,
-  lit-sphere preview, theta_h / theta_d slice), with the time of each view, for the draft the
+  lit-sphere and lit-object previews, theta_h / theta_d slice), with the time of each view, for the draft the
   page asks for while the slider moves and for the full update when it is let go;
 - in the browser (headless chromium through selenium, when chromium and chromedriver are
   installed): from the slider's value set in the page (as a drag moves it) to the in-plane
@@ -169,7 +169,7 @@ def main():
     for draft, name in ((True, "while moving"), (False, "let go")):
         totals, views = server_side(args.repeats, draft)
         _row(f"server, {name}: all views", totals)
-        for key in ("lobe", "polar", "albedo", "sphere", "slice"):
+        for key in ("lobe", "polar", "albedo", "sphere", "object", "slice"):
             _row(f"  of which {key}", views[key])
     _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
     if not args.no_browser:

@@ -286,6 +286,10 @@ class Explorer:
         out["sphere"] = view_data.sphere_preview(
             model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
         times["sphere"] = time.perf_counter() - start
+        start = time.perf_counter()
+        out["object"] = view_data.object_preview(
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
+        times["object"] = time.perf_counter() - start
         return out, times
 
     def slice_material(self):
@@ -392,6 +396,14 @@ class Explorer:
         self.sphere.grid.visible = False
         self.sphere_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="spheres")
         self.sphere.image_rgba("image", x="x", y=0, dw="dw", dh=1, source=self.sphere_source)
+        self.object_view = figure(title="lit object (direct light)", frame_width=SPHERE_PIXELS,
+                                  frame_height=SPHERE_PIXELS, tools="save", name="object",
+                                  x_range=(0, 1), y_range=(0, 1), min_border=0)
+        self.object_view.axis.visible = False
+        self.object_view.grid.visible = False
+        self.object_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="objects")
+        self.object_view.image_rgba("image", x="x", y=0, dw="dw", dh=1,
+                                    source=self.object_source)
 
         self._build_slice(pn)
         self.lobe = lobe_canvas_class()(size=420, width=420, height=420)
@@ -409,7 +421,8 @@ class Explorer:
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
-                          pn.Row(self.sphere, pn.Column(self.slice_select, self.phi_d_slider, self.slice)))
+                          pn.Row(pn.Column(self.sphere, self.object_view),
+                                 pn.Column(self.slice_select, self.phi_d_slider, self.slice)))
         self.layout = pn.Row(controls, views, name="brdf explorer")
 
     def _build_slice(self, pn):
@@ -621,27 +634,35 @@ class Explorer:
         import threading
 
         def run():
-            try:
-                images = [view_data.to_rgba(view_data.sphere_render(m, SPHERE_SIZE, REFINE_SPP))
-                          for m in models]
-            except Exception as exc:  # noqa: BLE001  (the preview stays; the page says why)
-                message = _message(exc)
-                self._soon(lambda: self._refined(token, None, message))
-                return
-            self._soon(lambda: self._refined(token, images, None))
+            # the spheres first (a quarter of the time): they replace their previews sooner
+            for name, render in (("sphere", view_data.sphere_render),
+                                 ("object", view_data.object_render)):
+                if token != self._refines:
+                    return  # superseded: its own refinement follows
+                try:
+                    images = [view_data.to_rgba(render(m, SPHERE_SIZE, REFINE_SPP))
+                              for m in models]
+                except Exception as exc:  # noqa: BLE001  (the preview stays; the page says why)
+                    message = _message(exc)
+                    self._soon(lambda: self._refined(token, name, None, message))
+                    return
+                self._soon(lambda name=name, images=images:
+                           self._refined(token, name, images, None))
 
         thread = threading.Thread(target=run, name="brdf-explorer-refine", daemon=True)
         thread.start()
         return thread
 
-    def _refined(self, token, images, message):
+    def _refined(self, token, name, images, message):
         if token != self._refines:
             return  # a slider moved on since: that update's own refinement follows
+        view, source = ((self.sphere, self.sphere_source) if name == "sphere"
+                        else (self.object_view, self.object_source))
         if images is None:
-            self.sphere.title.text = f"lit sphere (direct light; path tracing failed: {message})"
+            view.title.text = f"lit {name} (direct light; path tracing failed: {message})"
             return
-        self.sphere_source.data = dict(self.sphere_source.data, image=images)
-        self.sphere.title.text = f"lit sphere (path traced, {REFINE_SPP} spp)"
+        source.data = dict(source.data, image=images)
+        view.title.text = f"lit {name} (path traced, {REFINE_SPP} spp)"
 
     def _slider_callback(self, material, slider):
         def moved(event):
@@ -720,7 +741,7 @@ class Explorer:
         wi = incidence(self.theta_i, self.phi_i)
         self.polar.title.text = "in-plane: r = " + ("f cos(theta_o)" if self.cosine else "f") \
             + (" (log)" if self.log else "")
-        images, xs, lobes, triangles = [], [], [], None
+        images, objects, xs, lobes, triangles = [], [], [], [], None
         peak = max([d["lobe"][3] for d in data.values()], default=1.0)
         top = 1.0
         curves = [d["polar"][1].mean(axis=-1) for d in data.values()]
@@ -761,6 +782,7 @@ class Explorer:
                 lobe["samples"] = lobe_entry(wo * r[:, None], m.colour)["points"]
             lobes.append(lobe)
             images.append(view_data.to_rgba(d["sphere"]))
+            objects.append(view_data.to_rgba(d["object"]))
             xs.append(float(len(xs)))
         self.albedo.y_range.end = 1.08 * top
         self.albedo_marker.location = self.theta_i
@@ -776,6 +798,10 @@ class Explorer:
         self.sphere.frame_width = SPHERE_PIXELS * count
         self.sphere_source.data = {"image": images, "x": xs, "dw": [1.0] * len(images)}
         self.sphere.title.text = "lit sphere (direct light)"
+        self.object_view.x_range.end = count
+        self.object_view.frame_width = SPHERE_PIXELS * count
+        self.object_source.data = {"image": objects, "x": xs, "dw": [1.0] * len(objects)}
+        self.object_view.title.text = "lit object (direct light)"
 
     def _draw_slice(self, material, image):
         if image is None:

@@ -4,9 +4,11 @@ Each function takes a model (or anything with ``eval`` and ``albedo``) and retur
 with no browser and no plotting library involved, so every view is tested on its own and the
 explorer's update after a slider moves costs only these evaluations (``benchmarks/
 bench_explore.py``): the lobe mesh, the in-plane curve, the directional albedo curve, the lit
-sphere's direct-lighting preview, and the sliders a model's declarations call for.
+sphere's and lit object's direct-lighting previews, and the sliders a model's declarations
+call for.
 """
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -19,8 +21,10 @@ from .lobes import LOG_DECADES, lobe_values
 from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
-           "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
+           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve",
+           "sphere_preview", "sphere_render", "object_preview", "object_render", "lit_object",
+           "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
+           "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
 #: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
@@ -302,14 +306,23 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     if size < 2:
         raise InputError(f"sphere_preview: size {size} must be at least 2 pixels")
     normal, view, hit = _sphere_hits(size)
-    frame = frame_from_normal(normal)
     light = np.asarray(light, float) / np.linalg.norm(light)
+    radiance = _shade(model, normal, view, light, irradiance, environment, albedo)
+    out = np.full((size, size, radiance.shape[-1]), np.nan)
+    out[hit] = radiance
+    return out
+
+
+def _shade(model, normal, view, light, irradiance, environment, albedo):
+    """Direct-lighting radiance towards ``view`` at surface points of ``normal`` (world,
+    (m, 3)): see :func:`sphere_preview`. ``irradiance`` may be per point (0 in shadow)."""
+    frame = frame_from_normal(normal)
     wi = to_local(np.broadcast_to(light, normal.shape), frame)
     wo = to_local(view, frame)
-    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the sphere
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
     wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
     f = np.asarray(model.eval(wi, wo), float)
-    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[:, None]
+    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[..., None]
     if environment:
         if albedo is None:
             theta = np.degrees(np.arccos(np.linspace(1.0, 0.0, 24)))
@@ -319,9 +332,176 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
         a = a[::-1]
         env = np.stack([np.interp(wo[:, 2], cos_o, a[:, c]) for c in range(a.shape[1])], -1)
         radiance = radiance + environment * env
+    return radiance
+
+
+# -- lit object: a torus ----------------------------------------------------------------------
+
+#: The lit object beside the sphere: a ring torus of these radii about its own y axis (inside
+#: the unit sphere, so the sphere's camera frames it), turned this many degrees about x to
+#: show its hole and have the key light cast its shadow inside the ring; its mesh for the
+#: path tracer has this many segments around the ring and around the tube (smooth vertex
+#: normals).
+TORUS_RADII = (0.68, 0.3)
+TORUS_TILT = -60.0
+TORUS_SEGMENTS = (96, 48)
+#: Sphere-tracing steps of the preview and the distance that counts as on the surface.
+_MARCH_STEPS, _MARCH_EPS = 96, 1e-5
+
+
+def _torus_rotation():
+    """World from the torus's frame: a turn of TORUS_TILT degrees about x."""
+    c, s = math.cos(math.radians(TORUS_TILT)), math.sin(math.radians(TORUS_TILT))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _torus_distance(p):
+    """Signed distance to the torus of points ``p`` (m, 3) in its own frame (Hart 1996,
+    "Sphere tracing", the torus's distance |(rho - R, y)| - r)."""
+    big, small = TORUS_RADII
+    rho = np.hypot(p[:, 0], p[:, 2])
+    return np.hypot(rho - big, p[:, 1]) - small
+
+
+def _march(origin, direction, t0, t1):
+    """Sphere tracing (Hart 1996) of rays ``origin + t direction`` (torus frame) from ``t0``
+    to ``t1``: the hit distance per ray, NaN where it misses."""
+    t = np.array(t0, float)
+    hit = np.full(len(t), np.nan)
+    live = np.arange(len(t))
+    for _ in range(_MARCH_STEPS):
+        d = _torus_distance(origin[live] + t[live, None] * direction[live])
+        done = d < _MARCH_EPS
+        hit[live[done]] = t[live[done]]
+        t[live] += d
+        live = live[~done & (t[live] < t1[live])]
+        if not len(live):
+            break
+    return hit
+
+
+def _object_hits(size):
+    """Per pixel of the sphere's camera: the torus's normal where the ray hits it, the
+    direction towards the camera, the hit points (all world), and the hit mask."""
+    half = math.tan(math.radians(CAMERA_FOV) / 2)
+    s = (np.arange(size) + 0.5) / size * 2 - 1
+    x, y = np.meshgrid(s * half, -s * half)
+    d = np.stack([x, y, -np.ones_like(x)], -1).reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    rot = _torus_rotation()
+    o = np.array([0.0, 0.0, CAMERA_DISTANCE]) @ rot  # to the torus's frame: rot^T v
+    dl = d @ rot
+    # march inside the bounding sphere of radius R + r only
+    b = dl @ o
+    disc = b * b - (o @ o - sum(TORUS_RADII) ** 2)
+    near = np.where(disc > 0, -b - np.sqrt(np.maximum(disc, 0)), np.inf)
+    far = np.where(disc > 0, -b + np.sqrt(np.maximum(disc, 0)), -np.inf)
+    t = np.full(len(d), np.nan)
+    inside = disc > 0
+    t[inside] = _march(np.broadcast_to(o, (inside.sum(), 3)), dl[inside], near[inside],
+                       far[inside])
+    hit = ~np.isnan(t)
+    p = o + t[hit, None] * dl[hit]
+    # the normal: from the nearest point of the tube's centre circle
+    rho = np.hypot(p[:, 0], p[:, 2])
+    centre = np.stack([TORUS_RADII[0] * p[:, 0] / rho, np.zeros(len(p)),
+                       TORUS_RADII[0] * p[:, 2] / rho], -1)
+    n = p - centre
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n @ rot.T, -d[hit], p @ rot.T, hit.reshape(size, size)
+
+
+def _in_shadow(points, normals, light):
+    """Whether the torus hides the direction ``light`` from each world point (a march from
+    just off the surface)."""
+    rot = _torus_rotation()
+    origin = (points + 1e-3 * normals) @ rot
+    direction = np.broadcast_to(light @ rot, origin.shape)
+    return ~np.isnan(_march(origin, direction, np.zeros(len(origin)),
+                            np.full(len(origin), 2.0 * sum(TORUS_RADII))))
+
+
+@functools.lru_cache(maxsize=8)
+def _object_geometry(size, light):
+    """The torus's normals, view directions, key-light visibility and hit mask at ``size``:
+    the same for every model, so traced once (30-50 ms) and kept."""
+    normal, view, points, hit = _object_hits(size)
+    lit = ~_in_shadow(points, normal, np.array(light))
+    for a in (normal, view, lit, hit):
+        a.flags.writeable = False
+    return normal, view, lit, hit
+
+
+def object_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
+                   environment=ENVIRONMENT, albedo=None):
+    """The lit object (a torus, :data:`TORUS_RADII`, turned :data:`TORUS_TILT` degrees about
+    x) of ``model`` under the sphere's key light and environment, direct lighting as
+    :func:`sphere_preview` with the key light's shadows (a torus shadows itself): found by
+    sphere tracing its distance function. The environment term does not see the torus hide
+    part of the sky from itself, nor light between its sides (the path tracer does).
+
+    Returns
+    -------
+    ndarray, shape (size, size, C)
+        Radiance, NaN where the camera ray misses the torus.
+    """
+    size = int(size)
+    if size < 2:
+        raise InputError(f"object_preview: size {size} must be at least 2 pixels")
+    light = np.asarray(light, float) / np.linalg.norm(light)
+    normal, view, lit, hit = _object_geometry(size, tuple(light))
+    radiance = _shade(model, normal, view, light, irradiance * lit, environment, albedo)
     out = np.full((size, size, radiance.shape[-1]), np.nan)
     out[hit] = radiance
     return out
+
+
+def torus_mesh(material=None, segments=TORUS_SEGMENTS):
+    """The lit object as a :class:`brdf.render.Mesh` for the path tracer: ``segments``
+    (around the ring, around the tube) quads in two triangles each, with the torus's exact
+    normals at the vertices."""
+    from ..render import Mesh
+    big, small = TORUS_RADII
+    nu, nv = segments
+    u = 2 * np.pi * np.arange(nu) / nu
+    v = 2 * np.pi * np.arange(nv) / nv
+    U, V = np.meshgrid(u, v, indexing="ij")
+    # the torus about y: (R + r cos v) (cos u, 0, sin u) + r sin v y
+    normal = np.stack([np.cos(V) * np.cos(U), np.sin(V), np.cos(V) * np.sin(U)], -1)
+    ring = np.stack([np.cos(U), np.zeros_like(U), np.sin(U)], -1)
+    points = big * ring + small * normal
+    rot = _torus_rotation()
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a, b = i * nv + j, ((i + 1) % nu) * nv + j
+    c, d = ((i + 1) % nu) * nv + (j + 1) % nv, i * nv + (j + 1) % nv
+    # counter-clockwise seen from outside (the normal's side)
+    faces = np.concatenate([np.stack([a, d, c], -1).reshape(-1, 3),
+                            np.stack([a, c, b], -1).reshape(-1, 3)])
+    return Mesh(points.reshape(-1, 3) @ rot.T, faces, material,
+                normals=normal.reshape(-1, 3) @ rot.T)
+
+
+def lit_object(material, environment=ENVIRONMENT):
+    """The path tracer's scene of the lit object: the torus of :func:`torus_mesh` under the
+    camera, key light and environment of ``brdf.render.builtin("sphere")``."""
+    from ..render import Camera, DirectionalLight, Environment, Scene
+    camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
+                    fov=CAMERA_FOV)
+    key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
+    return Scene(camera, [torus_mesh(material)], [key],
+                 Environment(environment) if environment else None)
+
+
+def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, **options):
+    """The lit object path traced (:func:`lit_object`), NaN off the torus as
+    :func:`object_preview` (its mask: the mesh's silhouette differs by under a pixel).
+    ``options`` go to :func:`brdf.render.render` (``max_depth=2``: direct light only)."""
+    from .. import render
+    image = np.array(render.render(lit_object(material, environment), spp=int(spp),
+                                   size=(int(size), int(size)), seed=seed, progress=False,
+                                   **options).image, dtype=float)
+    image[~_object_hits(int(size))[3]] = np.nan
+    return image
 
 
 def sphere_render(material, size=128, spp=64, seed=0):

@@ -230,6 +230,47 @@ def test_path_traced_sphere_agrees_with_the_preview():
     assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.05
 
 
+def test_torus_mesh_is_closed_and_its_normals_face_out():
+    mesh = view_data.torus_mesh(segments=(24, 12))
+    faces = mesh.faces
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
+                    axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert set(counts) == {2}  # a closed surface
+    a, b, c = (mesh.vertices[faces[:, k]] for k in range(3))
+    facet = np.cross(b - a, c - a)
+    assert (np.einsum("ij,ij->i", facet, mesh.normals[faces].mean(axis=1)) > 0).all()
+    # every vertex on the torus (R - sqrt(x^2 + z^2))^2 + y^2 = r^2 in its own frame
+    tilt = math.radians(view_data.TORUS_TILT)
+    rot = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)],
+                    [0, math.sin(tilt), math.cos(tilt)]])
+    local = mesh.vertices @ rot
+    big, small = view_data.TORUS_RADII
+    np.testing.assert_allclose(np.hypot(np.hypot(local[:, 0], local[:, 2]) - big,
+                                        local[:, 1]), small, rtol=1e-12)
+
+
+def test_lit_object_preview_agrees_with_the_path_tracer():
+    # direct light only (no environment, paths of two segments): the preview's shading and
+    # shadows against the renderer's estimate for the mesh of the same torus
+    model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)")
+    preview = view_data.object_preview(model, 48, environment=0.0)
+    traced = view_data.object_render(model, 48, spp=256, seed=1, environment=0.0, max_depth=2)
+    hit = ~np.isnan(preview[..., 0])
+    assert 0.3 < hit.mean() < 0.7
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    ratio = traced[inner].mean(axis=0) / preview[inner].mean(axis=0)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.02)
+    lit = preview[inner][:, 0] > 0.02
+    assert np.median(abs(traced[inner][lit] / preview[inner][lit] - 1)) < 0.03
+    # the key light's shadow: a part of the torus is dark in both
+    dark = preview[inner][:, 0] == 0.0
+    assert dark.sum() > 20 and (traced[inner][dark][:, 0] < 0.02).mean() > 0.8
+
+
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
     image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
     pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
@@ -299,10 +340,20 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     # a full update is followed by the path-traced sphere, a draft is not
     app.refine_thread.join(120)
     assert app.sphere.title.text == "lit sphere (path traced, 64 spp)"
+    assert app.object_view.title.text == "lit object (path traced, 64 spp)"
     preview = app.sphere_source.data["image"]
+    lit_object = app.object_source.data["image"][0]
     app.set_parameter(0, "ggx.alpha", 0.4, draft=True)
     assert app.sphere.title.text == "lit sphere (direct light)"
+    assert app.object_view.title.text == "lit object (direct light)"
     assert app.sphere_source.data["image"] is not preview
+    # the object's draft: the preview of the new model, at the draft's size
+    from brdf.viz.explorer import DRAFT_ALBEDO_THETA, DRAFT_SPHERE_SIZE
+    np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
+        view_data.object_preview(app.materials[0].model, DRAFT_SPHERE_SIZE,
+                                 albedo=(DRAFT_ALBEDO_THETA, view_data.albedo_curve(
+                                     app.materials[0].model, DRAFT_ALBEDO_THETA)))))
+    assert lit_object.shape != app.object_source.data["image"][0].shape
     assert not np.allclose(before, after)
     assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
     # a tap in the polar plot at 45 degrees from the normal sets theta_i, slider too
@@ -479,6 +530,12 @@ def _sphere(driver):
         "'spheres'); return s && s.data.image.length ? Array.from(s.data.image[0]) : null")
 
 
+def _object(driver):
+    return driver.execute_script(
+        "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+        "'objects'); return s && s.data.image.length ? Array.from(s.data.image[0]) : null")
+
+
 def _canvas(driver, canvas):
     return driver.execute_script("return arguments[0].toDataURL()", canvas)
 
@@ -525,6 +582,7 @@ def test_page_in_a_headless_browser(tmp_path):
                                                     "Bokeh.documents.length > 0") and
                       _polar(driver))
         sphere = _wait(lambda: _sphere(driver))
+        lit_object = _wait(lambda: _object(driver))
         app, = server.explorers
         lobe = _wait(lambda: driver.execute_script(_DEEP, "canvas.brdf-lobe"))[0]
         # the mesh's triangles, less those the cosine folds to a point at the horizon
@@ -549,6 +607,7 @@ def test_page_in_a_headless_browser(tmp_path):
             _polar(driver)))
         assert not np.allclose(second, first)
         _wait(lambda: _sphere(driver) != sphere)
+        _wait(lambda: _object(driver) != lit_object)
         _wait(lambda: _canvas(driver, lobe) != turned)
         assert app.materials[0].model.params["ggx.alpha"] < 0.2
         # a wrong spec typed into the page: the library's one line, and the server lives on
@@ -618,7 +677,10 @@ def test_page_in_a_headless_browser(tmp_path):
         driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", lobe)
         phi = min((45.0, 135.0, 225.0, 315.0), key=lambda p: _lobe_target(lobe, 60.0, p)[2])
         target = _lobe_target(lobe, 60.0, phi)
-        tip = [float(v) for v in lobe.get_attribute("data-incident-tip").split(",")]
+        # the arrow drawn where the server's incidence projects (once the page has redrawn)
+        tip = _wait(lambda: (lambda t: t if np.allclose(
+            t, _lobe_target(lobe, app.theta_i, app.phi_i)[:2], atol=1.0) else None)(
+            [float(v) for v in lobe.get_attribute("data-incident-tip").split(",")]))
         size = lobe.size
         ActionChains(driver).move_to_element_with_offset(
             lobe, tip[0] - size["width"] / 2, tip[1] - size["height"] / 2).click_and_hold() \
