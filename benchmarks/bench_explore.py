@@ -14,7 +14,7 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
   included; and, as the floor under it, the same round trip when the server changes one
   two-point curve and computes nothing;
 - server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
-  and phi_i change at once).
+  and phi_i change at once), and the draft with the previews under the sky map.
 
 Each sets ``ggx.alpha`` to a new value every time (alternating between two values would let
 nothing be cached either, but a fresh value rules it out).
@@ -36,9 +36,10 @@ def _alphas(n):
     return [0.05 + 0.3 * (k % 17) / 17 + 1e-4 * k for k in range(n)]
 
 
-def server_side(repeats, draft):
+def server_side(repeats, draft, lighting="key"):
     from brdf.viz.explorer import Explorer
     app = Explorer([SPEC])
+    app.set_lighting(lighting)
     # the path-traced sphere that follows a full update runs in a thread of its own: timed
     # here it would only compete with the next update for the two cores
     app.refine = False
@@ -172,6 +173,10 @@ def main():
         for key in ("lobe", "polar", "albedo", "sphere", "object", "slice"):
             _row(f"  of which {key}", views[key])
     _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
+    totals, views = server_side(args.repeats, True, "sky")
+    _row("server, sky map, while moving", totals)
+    for key in ("sphere", "object"):
+        _row(f"  of which {key}", views[key])
     if not args.no_browser:
         times = in_browser(args.repeats)
         if times:

@@ -53,6 +53,11 @@ DRAFT_SPHERE_SIZE = 64
 SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
 #: The slice selector's entry that follows the first material shown.
 FIRST_SHOWN = "first material shown"
+#: The previews' lighting choices: the key light and a uniform environment, or the bundled
+#: sky map (brdf.viz.view_data.sky_map), previewed as this many median-cut lights (fewer
+#: while a slider moves: each costs an evaluation per pixel).
+LIGHTING = {"key light + environment": "key", "sky map": "sky"}
+SKY_LIGHTS, DRAFT_SKY_LIGHTS = 32, 16
 #: Samples per pixel of the path-traced sphere that replaces the preview once the sliders
 #: rest (64 at 128 x 128: about 0.25 s for lambert + ggx on this machine).
 REFINE_SPP = 64
@@ -283,12 +288,17 @@ class Explorer:
         times["albedo"] = time.perf_counter() - start
         start = time.perf_counter()
         # the environment's term needs the albedo at theta_o: the curve just computed
+        # under the sky map: its median-cut lights, fewer in a draft
+        lights = None if self.lighting == "key" else view_data.sky_lights(
+            DRAFT_SKY_LIGHTS if draft else SKY_LIGHTS)
         out["sphere"] = view_data.sphere_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
+            lights=lights)
         times["sphere"] = time.perf_counter() - start
         start = time.perf_counter()
         out["object"] = view_data.object_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
+            lights=lights)
         times["object"] = time.perf_counter() - start
         return out, times
 
@@ -330,7 +340,8 @@ class Explorer:
         timings["total"] = time.perf_counter() - start
         self._refines = getattr(self, "_refines", 0) + 1
         if not draft and shown and self.refine:
-            self.refine_thread = self._refine([m.model for m in shown], self._refines)
+            self.refine_thread = self._refine([m.model for m in shown], self._refines,
+                                              self.lighting)
         self.timings = timings
 
     # -- the page ---------------------------------------------------------------------------
@@ -352,6 +363,10 @@ class Explorer:
         self.log_box = pn.widgets.Checkbox(label="log radius", value=self.log)
         self.cosine_box.param.watch(lambda e: self._option(cosine=e.new), "value")
         self.log_box.param.watch(lambda e: self._option(log=e.new), "value")
+        self.lighting = "key"
+        self.lighting_select = pn.widgets.RadioButtonGroup(options=list(LIGHTING),
+                                                           value=next(iter(LIGHTING)))
+        self.lighting_select.param.watch(lambda e: self.set_lighting(LIGHTING[e.new]), "value")
         self.spec_input = pn.widgets.TextInput(label="add a material",
                                                placeholder="spec, fit report or measured file")
         self.add_button = pn.widgets.Button(label="add", color="primary")
@@ -421,7 +436,8 @@ class Explorer:
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
-                          pn.Row(pn.Column(self.sphere, self.object_view),
+                          pn.Row(pn.Column(self.lighting_select, self.sphere,
+                                           self.object_view),
                                  pn.Column(self.slice_select, self.phi_d_slider, self.slice)))
         self.layout = pn.Row(controls, views, name="brdf explorer")
 
@@ -628,9 +644,10 @@ class Explorer:
             f"verdict {result.verdict}{warnings}; shown as material {len(self.materials)}")
         self.update()
 
-    def _refine(self, models, token):
-        """Path trace the shown materials' spheres in a background thread; they replace the
-        previews unless another update came first (``token``). Returns the thread."""
+    def _refine(self, models, token, lighting="key"):
+        """Path trace the shown materials' spheres, then objects, under ``lighting`` in a
+        background thread; they replace the previews unless another update came first
+        (``token``). Returns the thread."""
         import threading
 
         def run():
@@ -640,7 +657,8 @@ class Explorer:
                 if token != self._refines:
                     return  # superseded: its own refinement follows
                 try:
-                    images = [view_data.to_rgba(render(m, SPHERE_SIZE, REFINE_SPP))
+                    images = [view_data.to_rgba(render(m, SPHERE_SIZE, REFINE_SPP,
+                                                       lighting=lighting))
                               for m in models]
                 except Exception as exc:  # noqa: BLE001  (the preview stays; the page says why)
                     message = _message(exc)
@@ -706,6 +724,19 @@ class Explorer:
         if phi is not None:
             self.phi_i = float(phi)
         self.update(draft)
+
+    def set_lighting(self, lighting):
+        """Light the sphere and the object with ``"key"`` (the key light and a uniform
+        environment) or ``"sky"`` (the bundled sky map), and update."""
+        if lighting not in LIGHTING.values():
+            raise InputError(f"lighting {lighting!r}: expected one of "
+                             f"{', '.join(LIGHTING.values())}")
+        self.lighting = lighting
+        label = next(k for k, v in LIGHTING.items() if v == lighting)
+        if self.lighting_select.value != label:
+            self.lighting_select.value = label  # its watcher comes back here
+            return
+        self.update()
 
     def _option(self, **changes):
         for key, value in changes.items():

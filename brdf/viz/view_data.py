@@ -24,7 +24,8 @@ __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_r
            "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve",
            "sphere_preview", "sphere_render", "object_preview", "object_render", "lit_object",
            "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
-           "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS"]
+           "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
+           "sky_map", "sky_lights", "SKY_SHAPE", "SKY_LIGHTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
 #: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
@@ -281,7 +282,7 @@ def _sphere_hits(size):
 
 
 def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
-                   environment=ENVIRONMENT, albedo=None):
+                   environment=ENVIRONMENT, albedo=None, lights=None):
     """A unit sphere of ``model`` under a directional key light and a uniform environment,
     direct lighting only (no interreflection; a sphere has none): the preview shown while a
     slider moves.
@@ -295,6 +296,9 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     explorer's albedo curve already holds, by default 24 angles at phi = 0 (exact for isotropic
     models up to the interpolation).
 
+    ``lights``, the directional lights of an environment map (:func:`sky_lights`), replace
+    the key light and the uniform environment when given.
+
     Returns
     -------
     ndarray, shape (size, size, C)
@@ -306,11 +310,34 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     if size < 2:
         raise InputError(f"sphere_preview: size {size} must be at least 2 pixels")
     normal, view, hit = _sphere_hits(size)
+    if lights is not None:
+        radiance = _shade_lights(model, normal, view, lights)
+        out = np.full((size, size, radiance.shape[-1]), np.nan)
+        out[hit] = radiance
+        return out
     light = np.asarray(light, float) / np.linalg.norm(light)
     radiance = _shade(model, normal, view, light, irradiance, environment, albedo)
     out = np.full((size, size, radiance.shape[-1]), np.nan)
     out[hit] = radiance
     return out
+
+
+def _shade_lights(model, normal, view, lights, visible=None):
+    """Radiance towards ``view`` at points of ``normal`` (world, (m, 3)) lit by directional
+    ``lights`` ``(directions (k, 3), irradiance (k, C))``: the reflection equation's sum over
+    delta lights (Pharr et al., PBR 4th ed., eq. 4.14); ``visible`` (k, m) masks shadows."""
+    directions, irradiance = lights
+    frame = frame_from_normal(normal)
+    wo = to_local(view, frame)
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
+    wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
+    k, m = len(directions), len(normal)
+    wi = np.stack([to_local(np.broadcast_to(d, normal.shape), frame) for d in directions])
+    f = np.asarray(model.eval(wi.reshape(-1, 3), np.tile(wo, (k, 1))), float).reshape(k, m, -1)
+    cos = np.maximum(wi[..., 2], 0.0)
+    if visible is not None:
+        cos = cos * visible
+    return np.einsum("km,kmc,kc->mc", cos, f, np.asarray(irradiance, float).reshape(k, -1))
 
 
 def _shade(model, normal, view, light, irradiance, environment, albedo):
@@ -433,7 +460,7 @@ def _object_geometry(size, light):
 
 
 def object_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
-                   environment=ENVIRONMENT, albedo=None):
+                   environment=ENVIRONMENT, albedo=None, lights=None):
     """The lit object (a torus, :data:`TORUS_RADII`, turned :data:`TORUS_TILT` degrees about
     x) of ``model`` under the sphere's key light and environment, direct lighting as
     :func:`sphere_preview` with the key light's shadows (a torus shadows itself): found by
@@ -448,6 +475,12 @@ def object_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     size = int(size)
     if size < 2:
         raise InputError(f"object_preview: size {size} must be at least 2 pixels")
+    if lights is not None:  # an environment map's lights, without their shadows
+        normal, view, _, hit = _object_geometry(size, tuple(KEY_LIGHT))
+        radiance = _shade_lights(model, normal, view, lights)
+        out = np.full((size, size, radiance.shape[-1]), np.nan)
+        out[hit] = radiance
+        return out
     light = np.asarray(light, float) / np.linalg.norm(light)
     normal, view, lit, hit = _object_geometry(size, tuple(light))
     radiance = _shade(model, normal, view, light, irradiance * lit, environment, albedo)
@@ -492,23 +525,118 @@ def lit_object(material, environment=ENVIRONMENT):
                  Environment(environment) if environment else None)
 
 
-def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, **options):
-    """The lit object path traced (:func:`lit_object`), NaN off the torus as
-    :func:`object_preview` (its mask: the mesh's silhouette differs by under a pixel).
-    ``options`` go to :func:`brdf.render.render` (``max_depth=2``: direct light only)."""
+def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, lighting="key",
+                  **options):
+    """The lit object path traced (:func:`lit_object`; under :func:`sky_map` alone when
+    ``lighting="sky"``), NaN off the torus as :func:`object_preview` (its mask: the mesh's
+    silhouette differs by under a pixel). ``options`` go to :func:`brdf.render.render`
+    (``max_depth=2``: direct light only)."""
     from .. import render
-    image = np.array(render.render(lit_object(material, environment), spp=int(spp),
+    scene = (lit_object(material, environment) if lighting == "key" else
+             _scene(torus_mesh(material), material, lighting))
+    image = np.array(render.render(scene, spp=int(spp),
                                    size=(int(size), int(size)), seed=seed, progress=False,
                                    **options).image, dtype=float)
     image[~_object_hits(int(size))[3]] = np.nan
     return image
 
 
-def sphere_render(material, size=128, spp=64, seed=0):
+# -- environment map --------------------------------------------------------------------------
+
+#: Size of the bundled sky map (rows, columns) and the directional lights its preview uses.
+SKY_SHAPE, SKY_LIGHTS = (64, 128), 64
+#: Where the sky map's sun is (towards it) and its radiance over a cone of SUN_WIDTH degrees
+#: (a smooth falloff), on a blue sky over a dark ground.
+SUN = np.array([-0.6, 0.55, 0.58]) / np.linalg.norm([-0.6, 0.55, 0.58])
+SUN_RADIANCE, SUN_WIDTH = (30.0, 26.0, 20.0), 6.0
+
+
+def _map_directions(shape):
+    """World directions of an equirectangular map's pixel centres in Mitsuba 3's envmap
+    layout (+y up; u = atan2(x, -z) / 2 pi, v = acos(y) / pi, row 0 at the top) and each
+    pixel's solid angle (2 pi^2 sin(theta) / (h w), PBR 3rd ed. eq. 14.9)."""
+    h, w = shape
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    return d, 2 * np.pi ** 2 * np.sin(T) / (h * w)
+
+
+def sky_map(shape=SKY_SHAPE):
+    """The bundled environment map: a sun (:data:`SUN`) in a blue sky graded to the horizon
+    over a dark ground, radiance ``(h, w, 3)`` in Mitsuba 3's envmap layout (the path tracer's
+    :class:`brdf.render.Environment` takes it as ``map``)."""
+    d, _ = _map_directions(shape)
+    up = d[..., 1:2]
+    sky = np.array([0.25, 0.42, 0.8]) * (0.35 + 0.65 * np.clip(up, 0, 1)) \
+        + np.array([0.5, 0.5, 0.45]) * np.exp(-8.0 * abs(up))  # a bright haze at the horizon
+    ground = np.broadcast_to(np.array([0.12, 0.1, 0.08]), sky.shape)
+    radiance = np.where(up > 0, sky, ground)
+    cone = np.degrees(np.arccos(np.clip(d @ SUN, -1, 1)))[..., None]
+    return radiance + np.array(SUN_RADIANCE) * np.exp(-0.5 * (cone / SUN_WIDTH) ** 2)
+
+
+@functools.lru_cache(maxsize=4)
+def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
+    """The sky map as ``count`` (a power of 2) directional lights for the previews: Debevec's
+    median cut (2005, "A Median Cut Algorithm for Light Probe Sampling"): regions of the map
+    split in two of equal energy (luminance times solid angle) across their longer side
+    (the width scaled by sin(theta)) until there are ``count``; each becomes a light at its
+    energy centroid carrying the region's irradiance (sum of radiance times solid angle).
+
+    Returns
+    -------
+    directions : ndarray (count, 3)
+    irradiance : ndarray (count, 3)
+    """
+    radiance = sky_map(shape)
+    d, omega = _map_directions(shape)
+    power = radiance * omega[..., None]
+    energy = power @ np.array([0.2126, 0.7152, 0.0722])  # luminance, ITU-R BT.709
+    regions = [(0, shape[0], 0, shape[1])]
+    while len(regions) < count:
+        split = []
+        for r0, r1, c0, c1 in regions:
+            rows = np.arange(r0, r1)
+            width = (c1 - c0) * np.sin(np.pi * (rows.mean() + 0.5) / shape[0])
+            e = energy[r0:r1, c0:c1]
+            if (r1 - r0) >= width and r1 - r0 > 1 or c1 - c0 == 1:
+                cut = r0 + 1 + int(np.searchsorted(np.cumsum(e.sum(1)), e.sum() / 2)
+                                   .clip(0, r1 - r0 - 2))
+                split += [(r0, cut, c0, c1), (cut, r1, c0, c1)]
+            else:
+                cut = c0 + 1 + int(np.searchsorted(np.cumsum(e.sum(0)), e.sum() / 2)
+                                   .clip(0, c1 - c0 - 2))
+                split += [(r0, r1, c0, cut), (r0, r1, cut, c1)]
+        regions = split
+    directions, irradiance = [], []
+    for r0, r1, c0, c1 in regions:
+        e = energy[r0:r1, c0:c1]
+        centre = (d[r0:r1, c0:c1] * e[..., None]).sum((0, 1))
+        directions.append(centre / np.linalg.norm(centre))
+        irradiance.append(power[r0:r1, c0:c1].sum((0, 1)))
+    return np.array(directions), np.array(irradiance)
+
+
+def _scene(shape, material, lighting):
+    """The previews' scene for the path tracer: ``shape`` under the key light and uniform
+    environment (``lighting == "key"``) or under :func:`sky_map` alone (``"sky"``)."""
+    from ..render import Camera, DirectionalLight, Environment, Scene
+    camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
+                    fov=CAMERA_FOV)
+    if lighting == "sky":
+        return Scene(camera, [shape], [], Environment(1.0, map=sky_map()))
+    key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
+    return Scene(camera, [shape], [key], Environment(ENVIRONMENT))
+
+
+def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options):
     """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
     ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
     the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
-    model or a measured table.
+    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead;
+    ``options`` go to :func:`brdf.render.render`.
 
     Returns
     -------
@@ -516,9 +644,10 @@ def sphere_render(material, size=128, spp=64, seed=0):
         Radiance, NaN where the camera ray misses the sphere (as the preview).
     """
     from .. import render
-    scene = render.builtin("sphere", material)
+    scene = (render.builtin("sphere", material) if lighting == "key" else
+             _scene(render.Sphere((0, 0, 0), 1.0, material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
-                                   progress=False).image, dtype=float)
+                                   progress=False, **options).image, dtype=float)
     image[~_sphere_hits(int(size))[2]] = np.nan
     return image
 

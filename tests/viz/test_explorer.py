@@ -271,6 +271,51 @@ def test_lit_object_preview_agrees_with_the_path_tracer():
     assert dark.sum() > 20 and (traced[inner][dark][:, 0] < 0.02).mean() > 0.8
 
 
+def test_sky_lights_carry_the_maps_irradiance():
+    directions, irradiance = view_data.sky_lights(16)
+    assert directions.shape == irradiance.shape == (16, 3)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, rtol=1e-12)
+    # the map's irradiance, sum of radiance times pixel solid angle 2 pi^2 sin(theta) / (h w)
+    # (PBR 3rd ed. eq. 14.9), computed here over the pixel grid
+    sky = view_data.sky_map()
+    h, w = sky.shape[:2]
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    total = (sky * (2 * np.pi ** 2 * np.sin(theta) / (h * w))[:, None, None]).sum((0, 1))
+    np.testing.assert_allclose(irradiance.sum(0), total, rtol=1e-12)
+    # regions of equal energy (Debevec 2005): the lights crowd into the sun as its share of
+    # the map's luminance says, give or take a region's worth on each side
+    directions, irradiance = view_data.sky_lights(64)
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    luminance = (sky @ [0.2126, 0.7152, 0.0722]) * np.sin(T)
+    near = d @ view_data.SUN > math.cos(math.radians(15.0))
+    share = luminance[near].sum() / luminance.sum()
+    count = (directions @ view_data.SUN > math.cos(math.radians(15.0))).sum()
+    assert 0.3 < share and abs(count - 64 * share) <= 4, (count, share)
+
+
+@pytest.mark.parametrize("spec", ["lambert(albedo=[0.5,0.4,0.3])",
+                                  "lambert(albedo=0.5) + ggx(alpha=0.3)"])
+def test_sky_preview_agrees_with_the_path_tracer_under_the_map(spec):
+    # the renderer reads the map through its own envmap lookup: a preview built on another
+    # orientation of the map would light the sphere from elsewhere
+    model = brdf.parse(spec)
+    preview = view_data.sphere_preview(model, 48, lights=view_data.sky_lights())
+    traced = view_data.sphere_render(model, 48, spp=256, seed=1, lighting="sky", max_depth=2)
+    hit = ~np.isnan(preview[..., 0])
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    np.testing.assert_allclose(traced[inner].mean(0) / preview[inner].mean(0), 1.0, atol=0.02)
+    # 64 lights stand for a smooth map: a few per cent per pixel on a rough material
+    assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.06
+    mirror = view_data.sphere_preview(model, 48, lights=(-view_data.sky_lights()[0],
+                                                         view_data.sky_lights()[1]))
+    assert np.median(abs(traced[inner] / np.maximum(mirror[inner], 1e-9) - 1)) > 0.3
+
+
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
     image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
     pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
@@ -415,6 +460,36 @@ def test_uploads_add_a_measured_file_or_a_fit_report_and_refuse_a_bad_file(tmp_p
     assert app.error.object == " ".join(str(refused.value).split()).replace(
         str(truncated), "x.bsdf")
     assert app.add_from_text("beckmann(alpha=0.3)") and not app.error.visible
+
+
+def test_the_previews_switch_to_the_sky_map_and_back():
+    from brdf.viz.explorer import DRAFT_SKY_LIGHTS, SKY_LIGHTS, SPHERE_SIZE, Explorer
+    app = Explorer([SPEC])
+    key = app.sphere_source.data["image"][0]
+    app.refine_thread.join(120)
+    app.lighting_select.value = "sky map"  # as the page's button does
+    assert app.lighting == "sky"
+    model = app.materials[0].model
+    lights = view_data.sky_lights(SKY_LIGHTS)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_preview(model, SPHERE_SIZE, lights=lights)))
+    np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
+        view_data.object_preview(model, SPHERE_SIZE, lights=lights)))
+    # refined by the path tracer under the same map: close to the preview on average
+    app.refine_thread.join(120)
+    assert app.object_view.title.text == "lit object (path traced, 64 spp)"
+    traced = view_data.sphere_render(model, SPHERE_SIZE, 64, lighting="sky")
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(traced))
+    app.set_parameter(0, "ggx.alpha", 0.3, draft=True)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_preview(app.materials[0].model, 64,
+                                 lights=view_data.sky_lights(DRAFT_SKY_LIGHTS))))
+    app.set_lighting("key")
+    assert app.lighting_select.value == "key light + environment"
+    app.set_parameter(0, "ggx.alpha", 0.2)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], key)
+    with pytest.raises(InputError, match="lighting 'sun'"):
+        app.set_lighting("sun")
 
 
 def test_the_slice_shows_the_material_chosen_in_its_list():
@@ -689,6 +764,13 @@ def test_page_in_a_headless_browser(tmp_path):
                             target[1] - tip[1] - (target[1] - tip[1]) / 2).release().perform()
         _wait(lambda: abs(app.theta_i - 60.0) < 1.5 and abs(app.phi_i - phi) < 2.0)
         assert (app.theta_slider.value, app.phi_slider.value) == (app.theta_i, app.phi_i)
+        # the previews under the sky map, chosen in the page
+        before = _sphere(driver), _object(driver)
+        sky = [b for b in driver.execute_script(_DEEP, "button") if b.text.strip() == "sky map"]
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", sky[0])
+        sky[0].click()
+        _wait(lambda: app.lighting == "sky" and _sphere(driver) != before[0]
+              and _object(driver) != before[1])
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
