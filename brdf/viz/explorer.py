@@ -210,7 +210,13 @@ class Explorer:
         if event.new is None:
             return
         name, data = self.upload_input.filename, event.new
-        self._soon(lambda: self.upload(name, data))
+
+        def add():
+            self.upload(name, data)
+            # forget it, here and in the page, so that the same file can come again
+            self.upload_input.param.update(value=None, filename=None)
+            self.upload_input.clear()
+        self._soon(add)
 
     def remove(self, index):
         """Remove material number ``index`` (its card and glyphs) and update."""

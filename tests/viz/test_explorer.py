@@ -437,6 +437,10 @@ def test_uploads_add_a_measured_file_or_a_fit_report_and_refuse_a_bad_file(tmp_p
     expected = brdf.read(table)
     np.testing.assert_array_equal(m.model.values, expected.values)
     assert len(m.samples_source.data["x"]) > 10
+    # the same file again: a second material (the input forgot the first)
+    app.upload_input.param.update(filename="paper_white_rgb.bsdf", value=data)
+    assert len(app.materials) == 3 and app.materials[2].label == "paper_white_rgb.bsdf"
+    app.remove(2)
     # a fit report: its model
     report = tmp_path / "fit.json"
     brdf.fit(brdf.measure("lambert(albedo=0.4)", "inplane:15"), "lambert", starts=1,
