@@ -332,12 +332,18 @@ def _shade_lights(model, normal, view, lights, visible=None):
     wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
     wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
     k, m = len(directions), len(normal)
-    wi = np.stack([to_local(np.broadcast_to(d, normal.shape), frame) for d in directions])
-    f = np.asarray(model.eval(wi.reshape(-1, 3), np.tile(wo, (k, 1))), float).reshape(k, m, -1)
+    # every light in every point's frame at once: (k, m, 3)
+    wi = np.stack([np.asarray(directions, float) @ axis.T for axis in frame], -1)
     cos = np.maximum(wi[..., 2], 0.0)
     if visible is not None:
         cos = cos * visible
-    return np.einsum("km,kmc,kc->mc", cos, f, np.asarray(irradiance, float).reshape(k, -1))
+    # only the pairs a light reaches: about half of them on a sphere
+    light, point = np.nonzero(cos > 0.0)
+    f = np.asarray(model.eval(wi[light, point], wo[point]), float)
+    irradiance = np.asarray(irradiance, float).reshape(k, -1)
+    terms = f.reshape(len(point), -1) * (cos[light, point][:, None] * irradiance[light])
+    return np.stack([np.bincount(point, terms[:, c], minlength=m)
+                     for c in range(terms.shape[1])], -1)
 
 
 def _shade(model, normal, view, light, irradiance, environment, albedo):
