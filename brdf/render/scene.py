@@ -590,6 +590,8 @@ def _pack_lights(scene, emitters, scale):
         else:
             raise InputError(f"{where}: not a light")
     env, env_rows, env_cols = np.zeros((1, 1, 3)), np.zeros(2), np.zeros((1, 2))
+    row_guide, col_guide = np.zeros(1, np.int64), np.zeros((1, 1), np.int64)
+    env_cos, env_edge = np.zeros(2), np.zeros((2, 2))
     env_light = -1
     if scene.environment is not None:
         e = scene.environment
@@ -600,6 +602,8 @@ def _pack_lights(scene, emitters, scale):
             from .image import read_image
             env = read_image(e.map, "environment map", channels=3)
             env_rows, env_cols = _env_distribution(env)
+            row_guide, col_guide = _guide(env_rows), np.stack([_guide(c) for c in env_cols])
+            env_cos, env_edge = _env_edges(env)
             f[6:15] = _env_frame(e.up).ravel()
             f[0] = 1.0
             mean *= float(env.mean())
@@ -616,7 +620,8 @@ def _pack_lights(scene, emitters, scale):
         pmf /= pmf.sum()
     gonio = (np.array(gonio, float) if gonio
              else np.zeros((1, L.GONIO_THETA, L.GONIO_PHI)))
-    return L.Lights(ltype, lf, pmf, gonio, env, env_rows, env_cols, env_light)
+    return L.Lights(ltype, lf, pmf, gonio, env, env_rows, env_cols, row_guide, col_guide,
+                    env_cos, env_edge, env_light)
 
 
 def _env_frame(up):
@@ -647,6 +652,23 @@ def _env_distribution(env):
     rows[-1] = 1.0
     cols[:, -1] = 1.0
     return rows, cols
+
+
+def _guide(cdf):
+    """Guide table of a CDF of n bins (n + 1 values from 0 to 1): the bin holding k / n for
+    each k < n, the start of the kernels' search (``_lights._invert``)."""
+    n = len(cdf) - 1
+    return np.clip(np.searchsorted(cdf, np.arange(n) / n, side="right") - 1, 0, n - 1)
+
+
+def _env_edges(env):
+    """The edges of the map's pixels: cos(pi i / h) of the rows' (h + 1) and the cos and sin of
+    the columns' azimuths 2 pi j / w (w + 1, the last the first again)."""
+    h, w, _ = env.shape
+    a = 2.0 * np.pi * np.arange(w + 1) / w
+    edge = np.stack([np.cos(a), np.sin(a)], axis=1)
+    edge[-1] = edge[0]
+    return np.cos(np.pi * np.arange(h + 1) / h), edge
 
 
 def _named(material, i):
