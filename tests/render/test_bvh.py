@@ -220,3 +220,15 @@ def test_packets_find_the_hits_of_every_primitive(spread):
                 np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
                                            + b * quad[prim[i, 1], 2], hit, atol=1e-12)
     assert hits > 150
+
+
+def test_a_scene_compiled_again_reuses_its_tree_and_a_moved_one_does_not():
+    """The same boxes give the same tree (kept, not built again); a moved shape gets its own,
+    whose root box holds it where it now is."""
+    def scene(x):
+        return render.Scene(shapes=[render.Sphere((x, 0.0, 0.0), 0.5),
+                                    render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))])
+    a, b, moved = scene(0.3).compile().geo, scene(0.3).compile().geo, scene(7.0).compile().geo
+    assert a.box is b.box and a.child is b.child and a.slots is b.slots
+    assert moved.box is not a.box
+    assert moved.box[0, 1, 0] >= 7.5 and a.box[0, 1, 0] < 1.0
