@@ -405,8 +405,11 @@ class Scene:
 
     def _compile(self):
         mats = _MaterialTable()
-        prims, emitters = [], []
+        # the primitives, a block of rows (kind, row in its kind's array, material, shape)
+        # per shape: a mesh's triangles in one block, not a Python tuple each
+        blocks, emitters = [], []
         sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
+        ntri = 0
         for k, s in enumerate(self.shapes):
             mat = mats.index(s.material)
             if isinstance(s, Sphere):
@@ -415,36 +418,43 @@ class Scene:
                     raise InputError(f"{_label(s, k)} (sphere): radius must be positive, got "
                                      f"{s.radius}")
                 sph.append(np.concatenate([_vec(s.centre, f"{_label(s, k)} centre"), [r]]))
-                prims.append((X.SPHERE, len(sph) - 1, mat, k))
+                blocks.append(np.array([[X.SPHERE, len(sph) - 1, mat, k]], dtype=np.int64))
             elif isinstance(s, Quad):
                 quad.append(quad_row(s, k))
-                prims.append((X.QUAD, len(quad) - 1, mat, k))
+                blocks.append(np.array([[X.QUAD, len(quad) - 1, mat, k]], dtype=np.int64))
             elif isinstance(s, Mesh):
-                for t in _mesh_rows(s, k, tri, tri_n, tri_uv):
-                    prims.append((X.TRIANGLE, t, mat, k))
+                rows = _mesh_rows(s, k, tri, tri_n, tri_uv)
+                block = np.empty((len(rows), 4), dtype=np.int64)
+                block[:, 0], block[:, 1] = X.TRIANGLE, ntri + rows
+                block[:, 2], block[:, 3] = mat, k
+                ntri += len(rows)
+                blocks.append(block)
             else:
                 raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got "
                                  f"{type(s).__name__}")
-        if not prims:
+        prim = np.concatenate(blocks) if blocks else np.empty((0, 4), dtype=np.int64)
+        if not len(prim):
             raise InputError("scene: no shapes")
-        prim = np.full((len(prims), 4), -1, dtype=np.int64)
-        prim[:, :3] = [p[:3] for p in prims]
+        shape_of = prim[:, 3].copy()
+        prim[:, 3] = -1
         sph = np.array(sph, float).reshape(-1, 4)
         quad = np.array(quad, float).reshape(-1, 7, 3)
-        tri = np.array(tri, float).reshape(-1, 3, 3)
-        tri_n = np.array(tri_n, float).reshape(-1, 3, 3)
-        tri_uv = np.array(tri_uv, float).reshape(-1, 3, 2)
+        tri = np.concatenate(tri).reshape(-1, 3, 3) if tri else np.empty((0, 3, 3))
+        tri_n = np.concatenate(tri_n).reshape(-1, 3, 3) if tri_n else np.empty((0, 3, 3))
+        tri_uv = np.concatenate(tri_uv).reshape(-1, 3, 2) if tri_uv else np.empty((0, 3, 2))
         lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
         nodes, child, slots = _tree(lo - pad, hi + pad)
         geo = X.Geometry(prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
                          _planes(prim, slots, quad, tri))
-        # area lights from emissive shapes
-        for i, (kind, j, _, k) in enumerate(prims):
+        # area lights from emissive shapes (meshes do not emit), in the primitives' order
+        first = np.cumsum([len(b) for b in blocks]) - [len(b) for b in blocks]
+        for k, (i, block) in enumerate(zip(first, blocks)):
             s = self.shapes[k]
-            if getattr(s, "emission", None) is None:  # meshes do not emit
+            if getattr(s, "emission", None) is None or not len(block):
                 continue
+            kind, j = block[0, 0], block[0, 1]
             if kind == X.TRIANGLE:
                 raise InputError(f"{_label(s, k)}: emission is for quads and spheres")
             if not isinstance(s.sides, str) or s.sides not in _SIDES:
@@ -458,8 +468,7 @@ class Scene:
             prim[i, 3] = len(emitters)
             emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
         lights = _pack_lights(self, emitters, scale)
-        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)),
-                        np.array([p[3] for p in prims], dtype=np.int64))
+        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)), shape_of)
 
 
 #: The last few trees built (:func:`_tree`), by a digest of their primitives' boxes.
@@ -515,6 +524,9 @@ def _plane_frame(e1, e2):
 
 
 def _mesh_rows(s, k, tri, tri_n, tri_uv):
+    """Append mesh ``s``'s triangles (vertices, vertex normals, uv; its degenerate ones
+    dropped) to the lists of blocks ``tri``, ``tri_n``, ``tri_uv``; returns their rows within
+    the mesh's block, ``arange(count)``."""
     v = np.asarray(s.vertices, float)
     f = np.asarray(s.faces, dtype=np.int64)
     if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
@@ -524,13 +536,12 @@ def _mesh_rows(s, k, tri, tri_n, tri_uv):
     tris = v[f]
     e = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     keep = np.linalg.norm(e, axis=1) > 0  # degenerate triangles have no normal
-    start = len(tri)
-    tri.extend(tris[keep])
+    tri.append(tris[keep])
     nrm = np.zeros_like(tris) if s.normals is None else np.asarray(s.normals, float)[f]
-    tri_n.extend(nrm[keep])
+    tri_n.append(nrm[keep])
     uv = np.zeros(tris.shape[:2] + (2,)) if s.uv is None else np.asarray(s.uv, float)[f]
-    tri_uv.extend(uv[keep])
-    return range(start, len(tri))
+    tri_uv.append(uv[keep])
+    return np.arange(int(keep.sum()), dtype=np.int64)
 
 
 def _planes(prim, slots, quad, tri):
