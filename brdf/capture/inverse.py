@@ -589,12 +589,15 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
         scale["method"] = "fitted jointly with the BRDF on the rendered reference pixels"
     laplace = {"percentiles": pf.percentiles(problem),
                "standard_errors": pf.standard_errors(problem),
+               "degrees_of_freedom": {p.name: float(d) for p, d in zip(problem.free, pf.dof)},
                "names": list(problem.names), "covariance_x": pf.covariance.tolist(),
                "x": "each free parameter, the logarithm of log-scaled ones (roughness)",
                "method": "Gauss-Newton sandwich covariance (J^T J)^-1 J^T diag(r^2) J "
                          "(J^T J)^-1 of the weighted residuals r at the optimum (HC3), plus "
                          f"the covariance of the optimum over {path.STREAM_DRAWS} other random "
-                         "streams (the renders' own Monte Carlo error)"}
+                         "streams (the renders' own Monte Carlo error); intervals of "
+                         "Student's t with the Welch-Satterthwaite degrees of freedom of "
+                         "that sum"}
     capture = {
         "method": "path",
         "method_reference": "image-space least squares through brdf's path tracer, common "

@@ -62,8 +62,6 @@ TOLERANCE = 2e-3
 #: have ended (the spread of the fit's own Monte Carlo error).
 STREAM_DRAWS = 4
 COVARIANCE_STREAMS = 1 << 20
-#: Two-sided 95 % quantile of the standard normal.
-Z95 = 1.959963984540054
 
 
 def default_spp(views):
@@ -140,6 +138,10 @@ class PathFit:
         k and its standard error (0 when fixed).
     covariance : ndarray
         Gauss-Newton covariance of x.
+    dof : ndarray
+        Each parameter's degrees of freedom for its interval: the covariance adds the
+        sandwich (the residuals' degrees of freedom) and the spread over a few random streams
+        (:data:`STREAM_DRAWS`), combined by Welch-Satterthwaite.
     predictions : list of ndarray
         k I at each view's pixels.
     loss : float
@@ -153,14 +155,16 @@ class PathFit:
         self.__dict__.update(kw)
 
     def percentiles(self, problem):
-        """``{free name: {percentile: value}}`` of the Laplace approximation (normal in x,
-        log-normal in the values of log-scaled parameters)."""
+        """``{free name: {percentile: value}}`` of the Laplace approximation: Student's t in
+        x with the parameter's :attr:`dof` (a normal when they are many), in the values of
+        log-scaled parameters through the exponential."""
+        from scipy.stats import t
         out = {}
         std = np.sqrt(np.clip(np.diag(self.covariance), 0.0, None))
         for i, p in enumerate(problem.free):
-            out[p.name] = {f"{q:g}": float(p.from_x(self.x[i] + z * std[i]))
-                           for q, z in ((2.5, -Z95), (16, -1.0), (50, 0.0), (84, 1.0),
-                                        (97.5, Z95))}
+            out[p.name] = {f"{q:g}": float(p.from_x(self.x[i] + t.ppf(q / 100.0, self.dof[i])
+                                                    * std[i]))
+                           for q in (2.5, 16, 50, 84, 97.5)}
         return out
 
     def standard_errors(self, problem):
@@ -328,7 +332,16 @@ def fit_path(problem, views, yx, values, *, scale=1.0, free_scale=False, noise=N
     # residuals show a render's noise per pixel, but not how much of it the fit follows (the
     # same paths give a pixel's value and its derivatives). In the demo's capture at 128 spp
     # the optimum moved 0.14 % (alpha, six streams) against a sandwich error of 0.08 %
-    cov = cov + np.cov(np.array(draws).T, ddof=1)
+    spread = np.cov(np.array(draws).T, ddof=1)
+    # the spread's variances rest on STREAM_DRAWS degrees of freedom: read against the
+    # normal's quantiles they gave 95 % intervals that covered about 93 % of the truths (ten
+    # noisy photographs); Student's t with the Welch-Satterthwaite degrees of freedom of the
+    # sum (Satterthwaite 1946, "An approximate distribution of estimates of variance
+    # components", eq. 2) widens them by what the few draws leave unknown
+    va, vb = np.diag(cov), np.diag(spread)
+    share = va ** 2 / dof + vb ** 2 / STREAM_DRAWS
+    dof_all = np.where(share > 0.0, (va + vb) ** 2 / np.where(share > 0.0, share, 1.0), np.inf)
+    cov = cov + spread
     k = k_of(z)
     sk = k * math.sqrt(max(cov[n, n], 0.0)) if free_scale else 0.0
     pred = k * vals
@@ -339,7 +352,8 @@ def fit_path(problem, views, yx, values, *, scale=1.0, free_scale=False, noise=N
         preds.append(pred[a:a + np.asarray(v).size].reshape(-1, 3))
         a += np.asarray(v).size
     return PathFit(x=z, model=problem.model(z[:n]), scale=k, scale_sigma=sk,
-                   covariance=cov[:n, :n], predictions=preds, loss=loss, sigma=sigma,
+                   covariance=cov[:n, :n], dof=dof_all[:n], predictions=preds, loss=loss,
+                   sigma=sigma,
                    renders=renders[0], iterations=int(nfev), rounds=rounds,
                    status=str(fit.message), converged=bool(fit.status > 0),
                    seconds=time.perf_counter() - began, chi2_per_value=loss / dof, spp=spp)

@@ -85,7 +85,39 @@ def test_noisy_photograph_with_unknown_exposure_and_a_reference_floor(tmp_path):
     # measured (seeds 1 and 2): within 0.1-3.0 %, the ks the worst
     assert max_relative_error(r.params) < 0.04, r.params
     lo, hi = r.interval("ggx.alpha")
-    assert lo < r.params["ggx.alpha"] < hi and hi - lo < 0.05 * r.params["ggx.alpha"]
+    assert hi - lo < 0.05 * r.params["ggx.alpha"]
+    # Mitsuba's image is not exactly ours (fits to it: ks and alpha 0.6-0.8 standard errors
+    # low on average), so its photographs land further out than the noise alone says:
+    # measured, seed 1 up to 3.2 standard errors (ks), eight seeds of a 4096-spp image
+    # 1.5-2.7 at worst; the coverage of the noise is the test below
+    se = r.capture["laplace"]["standard_errors"]
+    assert all(abs(r.params[k] - v) < 3.5 * se[k] for k, v in TRUTH.items()), (r.params, se)
+
+
+@pytest.mark.slow
+def test_noisy_photographs_intervals_cover_the_truth(tmp_path):
+    """Noisy 8-bit photographs with an unknown exposure, of our own render of the truth (so
+    that the only error is the photograph's noise and the fit's Monte Carlo error): every 95 %
+    interval, the scale's included, covers the truth. Measured over thirty seeds (11-40): 203
+    of 210 intervals (96.7 %), the scale 29 of 30."""
+    from PIL import Image
+    from capture_scenes import TRUTH_SPEC
+    scene = scene_file(tmp_path / "n.json", "a", floor=True)
+    write_exr(tmp_path / "size.exr", np.ones((48, 64, 3)))
+    view = brdf.capture.read_view(scene, tmp_path / "size.exr")
+    linear = brdf.render.render(path.scene_with(view, brdf.parse(TRUTH_SPEC)), spp=4096,
+                                size=(64, 48), seed=999, progress=False).image
+    photons, exposure = 2000, 1.2
+    for seed in (11, 12, 13):
+        Image.fromarray(photograph(linear, photons, exposure, seed=seed)).save(tmp_path / "n.png")
+        r = brdf.fit_images("lambert + ggx", [(scene, tmp_path / "n.png")], response="srgb",
+                            gain=photons, free_scale=True, method="path", spp=256, seed=seed,
+                            progress=False)
+        for name, v in TRUTH.items():
+            lo, hi = r.interval(name)
+            assert lo <= v <= hi, (seed, name, v, lo, hi)
+        s = r.capture["scale"]
+        assert abs(s["value"] - exposure) < 1.96 * s["sigma"], (seed, s)
 
 
 def test_path_refuses_mcmc_and_a_bad_spp_in_one_line(case_b, capsys):
