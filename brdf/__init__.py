@@ -16,7 +16,7 @@ from .spec import from_dict, from_json, parse  # noqa: E402
 from .models.custom import CustomModel, register_model, unregister_model  # noqa: E402
 
 __all__ = ["__version__", "parse", "from_dict", "from_json", "check", "read", "write",
-           "measure", "fit", "mcmc", "compare", "export", "batch", "load_report",
+           "measure", "fit", "fit_images", "mcmc", "compare", "export", "batch", "load_report",
            "CustomModel", "register_model", "unregister_model", "Table", "models", "geometry",
            "radiometry", "io",
            "BRDFError", "SpecError", "ParameterError", "InputError", "FormatError", "OutputError",
@@ -41,6 +41,13 @@ def fit(data, spec, **options):
     """Fit a model spec to measured data with nlopt; see :func:`brdf.fitting.fit`."""
     from .fitting import fit as _fit
     return _fit(data, spec, **options)
+
+
+def fit_images(spec, views, **options):
+    """Fit a model spec to photographs of known scenes (inverse illumination); see
+    :func:`brdf.capture.fit_images`."""
+    from .capture import fit_images as _fit_images
+    return _fit_images(spec, views, **options)
 
 
 def mcmc(data, start, **options):

@@ -6,76 +6,21 @@ compilation. Fast-math flags exclude ``nnan`` and ``ninf``: kernels test for NaN
 follows IEEE (``error_model="numpy"``): a zero divisor gives inf or NaN, which the kernels treat
 as an invalid sample, instead of raising, and the loops stay free of checks that block SIMD.
 
-numba keys a cached kernel on its own source file only, but our kernels inline functions from
-other modules of the package (a model's formula into the dispatcher), so an edit to one file
-could leave stale machine code behind. The cache locators below stamp every kernel of this
-package with a fingerprint of the source of all its kernel modules instead.
+Where the cache lives, when it is stale and how it loads is :mod:`brdf._kernel_cache`.
 
-These locators, the typing hooks below, the private linkage of callees and ``_nrt=False``
-reach into numba internals, so ``pyproject.toml`` pins numba to the minor release
+The typing hooks below, the private linkage of callees and ``_nrt=False`` reach into
+numba internals, so ``pyproject.toml`` pins numba to the minor release
 ``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
 """
 
-import hashlib
-import os
-import re
-
 import llvmlite.binding as ll
 import numba
-from numba.core import caching, cgutils, codegen, datamodel, types
+from numba.core import cgutils, codegen, datamodel, types
 from numba.extending import intrinsic
 
+from ._kernel_cache import quick_loading
+
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
-_PACKAGE = os.path.dirname(os.path.abspath(__file__))
-_KERNEL_MODULE = re.compile(rb"^from \.+_jit import|^import brdf\._jit", re.M)
-#: Modules that kernels are generated from without compiling any (the family table).
-_GENERATED_FROM = (os.path.join(_PACKAGE, "models", "_kinds.py"),)
-
-
-def _package_stamp():
-    """Hash of the source of every module that compiles kernels (imports this module), of the
-    modules kernels are generated from, and of this module: a kernel can only inline code from
-    such modules. Modules without kernels (plots, scenes, the demo, the command line) are left
-    out, so editing them keeps the cache (recompiling everything costs minutes on two cores)."""
-    h = hashlib.sha256()
-    for root, dirs, files in os.walk(_PACKAGE):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
-        for name in sorted(f for f in files if f.endswith(".py")):
-            path = os.path.join(root, name)
-            with open(path, "rb") as f:
-                source = f.read()
-            if (path == os.path.abspath(__file__) or path in _GENERATED_FROM
-                    or _KERNEL_MODULE.search(source)):
-                h.update(os.path.relpath(path, _PACKAGE).encode() + b"\0" + source + b"\0")
-    return h.hexdigest()
-
-
-_STAMP = _package_stamp()
-
-
-class _PackageStamp:
-    """Mixin: invalidate cached kernels of this package when any of its files changes."""
-
-    def get_source_stamp(self):
-        return _STAMP
-
-    @classmethod
-    def from_function(cls, py_func, py_file):
-        if not os.path.abspath(py_file).startswith(_PACKAGE + os.sep):
-            return None
-        return super().from_function(py_func, py_file)
-
-
-class _InTree(_PackageStamp, caching.InTreeCacheLocator):
-    pass
-
-
-class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
-    pass
-
-
-if _InTree not in caching.CacheImpl._locator_classes:
-    caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
 
 
 def _private_copies(codegen_library):
@@ -185,15 +130,15 @@ def kernel(fn):
     thread: 2.23 us with them, 1.30 us without). Such a kernel may slice and write its
     arrays but not allocate one (numba refuses to compile it) nor return one
     (:func:`_borrowing` refuses); kernels that allocate use :func:`allocating_kernel`."""
-    return _borrowing(_without_literals(numba.njit(fn, cache=True, fastmath=FASTMATH,
-                                                   error_model="numpy", _nrt=False)))
+    return _borrowing(_without_literals(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False))))
 
 
 def allocating_kernel(fn):
     """Compile a serial kernel that allocates work arrays (reference counted, as numba's
     default; otherwise as :func:`kernel`)."""
-    return _without_literals(numba.njit(fn, cache=True, fastmath=FASTMATH,
-                                        error_model="numpy"))
+    return _without_literals(quick_loading(numba.njit(fn, cache=True, fastmath=FASTMATH,
+                                                      error_model="numpy")))
 
 
 def inline_kernel(fn):
@@ -205,14 +150,14 @@ def inline_kernel(fn):
     slower); :func:`kernel` no longer counts them. Each inlined copy is typed and
     lowered again, so inlining functions of scalars as well made a cold cache compile three
     to four times longer (15 minutes on two cores) at no gain in speed."""
-    return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH, error_model="numpy",
-                                          inline="always"))
+    return _inputs_as_writable(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", inline="always")))
 
 
 def parallel_kernel(fn):
     """Compile an array kernel whose ``prange`` loops run on all cores."""
-    return _inputs_as_writable(numba.njit(fn, cache=True, fastmath=FASTMATH,
-                                          error_model="numpy", parallel=True))
+    return _inputs_as_writable(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", parallel=True)))
 
 
 @intrinsic

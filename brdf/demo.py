@@ -7,7 +7,8 @@ the virtual gonioreflectometer with 2 % noise), it runs every stage the library 
 info -> physical checks -> nlopt fits of candidate models with the energy constraint ->
 comparison (BIC) -> emcee posterior of the best fit of the real data -> validation renders
 (:func:`brdf.render.validate`: measured versus fitted, false-colour difference, FLIP, in one
-figure) -> 3-D lobes and 2-D plots ->
+figure) -> 3-D lobes and 2-D plots; then a material recovered from rendered photographs
+(:func:`brdf.fit_images`, the path method: truth, estimate and 95 % interval) ->
 ``results/`` with the JSON reports, the images and one self-contained ``report.html``.
 """
 
@@ -36,6 +37,12 @@ SYNTHETIC_NOISE = "relative:0.02"
 #: more: the four renders are most of the validation stages' time, the emcee chain most of
 #: the demo's.
 RENDER_SIZE, RENDER_SPP = (256, 256), 64
+#: The photographed material: a sphere of this BRDF beside a diffuse floor (albedo
+#: CAPTURE_FLOOR) under a point light, so that light passes between them
+CAPTURE_TRUTH = "lambert(albedo=[0.45,0.3,0.18]) + ggx(alpha=0.22, ks=0.35)"
+CAPTURE_FLOOR = 0.6
+#: The photograph's pixels and samples per pixel, and the path method's samples per pixel
+CAPTURE_SIZE, CAPTURE_PHOTO_SPP, CAPTURE_FIT_SPP = (64, 48), 1024, 128
 #: The report's label of the composite validation figure (brdf.viz.validation_figure)
 VALIDATION_FIGURE = "validation: measured | fitted | difference | FLIP"
 
@@ -83,8 +90,8 @@ def _compile_albedo():
 
 
 #: Stages of a run: reading and synthesising, then per data set its info and checks, fits,
-#: renders and plots, and the posterior of the real measurement
-STAGES = 1 + 4 * 2 + 1
+#: renders and plots, the posterior of the real measurement, and the material from photographs
+STAGES = 1 + 4 * 2 + 1 + 1
 
 
 class _Stages:
@@ -211,12 +218,54 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 path = f"{name}-{label.split()[0].replace('/', '')}.png"
                 save_figure(fig, out / path, force=True)
                 entry["images"][label] = path
+    with stage("photographs: a material recovered by inverse rendering"):
+        summary["capture"] = _capture(out, seed, quick)
     summary["seconds"] = time.perf_counter() - t_start
     _write_json(out / "summary.json", summary)
     _write_report(out, summary)
     if shown is not None:
         note(f"demo: done in {summary['seconds']:.0f} s: {out / 'report.html'}")
     return summary
+
+
+def _capture(out, seed, quick):
+    """Photograph :data:`CAPTURE_TRUTH` with the path tracer and recover it with
+    :func:`brdf.fit_images` (path method, its own seed): the rows truth | estimate | 95 %
+    interval, and the files."""
+    import brdf
+    from .render import load
+    from .spec import parse
+    doc = {"camera": {"origin": [0, 0.6, 4], "target": [0, 0, 0], "fov": 36},
+           "materials": {"floor": f"lambert(albedo={CAPTURE_FLOOR})"},
+           "shapes": [{"type": "sphere", "centre": [0, 0, 0], "radius": 1,
+                       "material": "@material"},
+                      {"type": "rectangle", "material": "floor",
+                       "to_world": [[3, 0, 0, 0], [0, 0, 3, -1], [0, -3, 0, 0], [0, 0, 0, 1]]}],
+           "lights": [{"type": "point", "position": [2.5, 2.5, 3], "intensity": 12}]}
+    _write_json(out / "capture-scene.json", doc)
+    size = (32, 24) if quick else CAPTURE_SIZE
+    photo_spp, fit_spp = (128, 32) if quick else (CAPTURE_PHOTO_SPP, CAPTURE_FIT_SPP)
+    truth = parse(CAPTURE_TRUTH)
+    scene = load(out / "capture-scene.json", material=truth)
+    photo = brdf.render.render(scene, spp=photo_spp, size=size, seed=seed + 1, progress=False)
+    photo.save(out / "capture-photo.exr", force=True, layers=False)
+    photo.save(out / "capture-photo.png", force=True)
+    fit = brdf.fit_images("lambert + ggx", [(out / "capture-scene.json",
+                                             out / "capture-photo.exr")],
+                          method="path", spp=fit_spp, seed=seed, progress=False)
+    fit.save(out / "capture-fit.json", force=True)
+    rows = []
+    for name in fit.free:
+        # a scalar of the truth (ks) is fitted per channel
+        true = float(truth.params.get(name, truth.params.get(name.partition("[")[0])))
+        lo, hi = fit.interval(name)
+        rows.append({"parameter": name, "truth": true, "estimate": fit.params[name],
+                     "relative_error": (fit.params[name] - true) / true,
+                     "interval_95": [lo, hi]})
+    return {"truth": CAPTURE_TRUTH, "size": list(size), "photo_spp": photo_spp,
+            "fit_spp": fit_spp, "renders": fit.capture["renders"],
+            "pixels": fit.capture["pixels_used"], "rows": rows,
+            "images": {"the photograph (path tracer, every bounce)": "capture-photo.png"}}
 
 
 # --- the HTML report --------------------------------------------------------------------------
@@ -367,6 +416,25 @@ def _write_report(out, summary):
         wide = {label for label, (w, h) in shapes.items() if w >= 2 * h}
         for label in sorted(e["images"], key=lambda k: (k != VALIDATION_FIGURE, k not in wide)):
             parts.append(_figure(out / e["images"][label], label, number, wide=label in wide))
+            number += 1
+        parts.append("</div>")
+    c = summary.get("capture")
+    if c:
+        parts.append("<h2>A material from photographs (brdf.fit_images, path method)</h2>")
+        parts.append(f"<p>A sphere of <code>{html.escape(c['truth'])}</code> beside a diffuse "
+                     f"floor under a point light, photographed by the path tracer "
+                     f"({c['size'][0]} x {c['size'][1]}, {c['photo_spp']} spp, every bounce), "
+                     f"then recovered from {c['pixels']:,} pixels through {c['renders']} "
+                     f"renders of {c['fit_spp']} spp with other random streams. The intervals "
+                     "are the Laplace (Gauss-Newton) approximation.</p>")
+        parts.append(_table(["parameter", "truth", "estimate", "error", "95 % interval"],
+                            [[r["parameter"], sig(r["truth"]), sig(r["estimate"]),
+                              f"{100 * r['relative_error']:+.2f} %",
+                              f"[{sig(r['interval_95'][0])}, {sig(r['interval_95'][1])}]"]
+                             for r in c["rows"]]))
+        parts.append('<div class="figures">')
+        for label, path in c["images"].items():
+            parts.append(_figure(out / path, label, number))
             number += 1
         parts.append("</div>")
     parts.append('<div id="viewer" hidden><p></p><img alt=""></div></body></html>')

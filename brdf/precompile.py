@@ -2,8 +2,9 @@
 
 numba compiles a kernel the first time it is called and keeps the machine code in its disk
 cache; on a cold cache that is minutes of work on one core. :func:`precompile` runs small calls
-of every kernel group in separate processes, so the groups compile side by side, and later
-processes (a test suite's workers, the demo's renders, a batch of fits) load them from the cache.
+of every kernel group, in parts, in separate processes, so the parts compile side by side, and
+later processes (a test suite's workers, the demo's renders, a batch of fits) load them from the
+cache.
 On a warm cache it costs the processes' start-up only.
 
     python -m brdf.precompile [GROUP ...]      (or: brdf-fit precompile [GROUP ...])
@@ -17,10 +18,10 @@ import time
 
 import numpy as np
 
-from .kernel_groups import COLD_SECONDS, announce_first_compiles
+from .kernel_groups import announce_first_compiles
 
-__all__ = ["GROUPS", "PROCESSES", "check_groups", "precompile", "compile_groups", "starting", "describe",
-           "main"]
+__all__ = ["GROUPS", "PROCESSES", "check_groups", "precompile", "compile_groups", "processes_used", "starting",
+           "describe", "main"]
 
 _SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3, fresnel=schlick(f0=0.04))"
 
@@ -31,26 +32,43 @@ def _pairs(n=64):
     return directions_from_degrees(t, 0.0 * t), directions_from_degrees(t[::-1], 180.0 + t)
 
 
-def _models():
-    """Evaluation, sampling, albedo and the physical checks of parametric models."""
+def _model_eval():
+    """Evaluation of parametric models and their physical checks (albedo, reciprocity)."""
     import brdf
     model = brdf.parse(_SPEC)
     wi, wo = _pairs()
-    model.eval(wi, wo), model.pdf(wi, wo), model.sample(wi, np.full((len(wi), 2), 0.3))
+    model.eval(wi, wo)
     brdf.check(model)
 
 
-def _fitting():
-    """The fits' own kernels: the loss with its gradient (gradient-based nlopt), the loss of
-    many parameter rows (derivative-free nlopt, emcee's walkers) and the metrics' scores. The
-    table is made by hand and no fit runs, so the models' kernels (the ``models`` group) are
-    not compiled here a second time."""
+def _model_sampling():
+    """Sampling of parametric models and the densities of what they sample."""
+    import brdf
+    model = brdf.parse(_SPEC)
+    wi, wo = _pairs()
+    model.pdf(wi, wo), model.sample(wi, np.full((len(wi), 2), 0.3))
+
+
+def _fitting_problem():
     from .fitting.problem import Problem
     from .table import Table
     wi, wo = _pairs()
     table = Table(wi, wo, np.full((len(wi), 3), 0.2))
-    problem = Problem(table, "lambert + ggx(alpha=0.5)")
+    return table, Problem(table, "lambert + ggx(alpha=0.5)")
+
+
+def _fitting_gradient():
+    """The fits' loss with its gradient (gradient-based nlopt). The table is made by hand and
+    no fit runs, so the models' kernels (the ``models`` group) are not compiled here a second
+    time."""
+    _, problem = _fitting_problem()
     problem.loss_and_gradient(problem.x0)
+
+
+def _fitting_losses():
+    """The loss of many parameter rows (derivative-free nlopt, emcee's walkers) and the
+    metrics' scores."""
+    table, problem = _fitting_problem()
     problem.channel_losses(np.stack([problem.x0, problem.x0]))
     problem.score(np.zeros_like(table.values), problem.terms)
 
@@ -75,37 +93,79 @@ def _render():
     render(builtin("cornell"), spp=1, size=(4, 4), seed=0)
 
 
-#: Kernel groups by name, each compiled by small calls of the public functions that use them
-#: (the same names as :data:`brdf.kernel_groups.KERNELS`).
-GROUPS = {"models": _models, "fitting": _fitting, "tables": _tables, "render": _render}
-#: Processes the groups are dealt out to by default (one per core of a 2-core machine).
+#: Kernel groups by name (the names of :data:`brdf.kernel_groups.KERNELS`), each compiled by
+#: small calls of the public functions that use them, in parts that compile apart (their own
+#: top-level kernels; callees they share come from whichever part compiled them first, through
+#: the disk cache, or compile twice). Each part with about the seconds of CPU its kernels took
+#: to compile (numba's compile events, one process, 2026-12-04), so the longest start first.
+GROUPS = {"models": ((_model_eval, 70), (_model_sampling, 35)),
+          "fitting": ((_fitting_gradient, 25), (_fitting_losses, 25)),
+          "tables": ((_tables, 5),),
+          "render": ((_render, 40),)}
+#: Processes the parts are dealt out to by default (one per core of a 2-core machine).
 PROCESSES = 2
+
+
+def _run(parts):
+    """Run ``parts`` (``(group, index)`` pairs of :data:`GROUPS`) in this process, without
+    compile notices (the caller reports): for each, ``(seconds, kernels numba compiled)``."""
+    from .progress import reporting
+    notice = announce_first_compiles()
+    out = []
+    with reporting(quiet=True):
+        for group, index in parts:
+            start, before = time.perf_counter(), notice.compiled
+            GROUPS[group][index][0]()
+            out.append((time.perf_counter() - start, notice.compiled - before))
+    return out
+
+
+def _totals(names, done):
+    """Per group in ``names`` order, the sums of its parts' ``(seconds, compiled)`` in
+    ``done`` (a dict from ``(group, index)``)."""
+    took = {name: {"seconds": 0.0, "compiled": 0} for name in names}
+    for (group, _), (seconds, compiled) in done.items():
+        took[group]["seconds"] += seconds
+        took[group]["compiled"] += compiled
+    return took
 
 
 def compile_groups(names):
     """Run the groups ``names`` in this process, without compile notices (the caller
     reports): for each, ``{"seconds": ..., "compiled": ...}``, the seconds it took and the
     kernels numba compiled (0: all came from the disk cache)."""
-    from .progress import reporting
-    notice = announce_first_compiles()
-    out = {}
-    with reporting(quiet=True):
-        for name in names:
-            start, before = time.perf_counter(), notice.compiled
-            GROUPS[name]()
-            out[name] = {"seconds": time.perf_counter() - start,
-                         "compiled": notice.compiled - before}
-    return out
+    parts = _parts(names)
+    return _totals(names, dict(zip(parts, _run(parts))))
+
+
+def _parts(names):
+    """The ``(group, index)`` parts of the groups ``names``, the longest (cold) first."""
+    parts = [(g, i) for g in names for i in range(len(GROUPS[g]))]
+    return sorted(parts, key=lambda part: -GROUPS[part[0]][part[1]][1])
+
+
+def _cold_wall(names, processes):
+    """Seconds a cold cache takes: the parts, longest first, each to the first free process."""
+    ends = [0.0] * processes_used(names, processes)
+    for group, index in _parts(names):
+        k = ends.index(min(ends))
+        ends[k] += GROUPS[group][index][1]
+    return max(ends)
+
+
+def processes_used(names, processes):
+    """How many of ``processes`` worker processes :func:`precompile` starts for the groups
+    ``names``: no more than they have parts."""
+    return max(1, min(int(processes), len(_parts(names))))
 
 
 def starting(names, processes):
     """What :func:`precompile` is about to do, in a line: the groups, the processes and the
     time a cold cache takes (a warm one takes seconds)."""
-    batches = _batches(names, processes)
-    cold = max(sum(COLD_SECONDS[g] for g in batch) for batch in batches)
-    return (f"compiling {', '.join(names)} in {len(batches)} "
-            f"process{'es' * (len(batches) > 1)} (about {cold} s on a cold cache, seconds on "
-            "a warm one) ...")
+    n = processes_used(names, processes)
+    return (f"compiling {', '.join(names)} in {n} process{'es' * (n > 1)} (about "
+            f"{round(_cold_wall(names, n) / 5) * 5:.0f} s on a cold cache, seconds on a warm "
+            "one) ...")
 
 
 def describe(name, took):
@@ -114,13 +174,6 @@ def describe(name, took):
     done = (f"compiled {took['compiled']} kernel{'s' * (took['compiled'] != 1)}"
             if took["compiled"] else "loaded from the cache")
     return f"{name}: {done} in {took['seconds']:.1f} s"
-
-
-def _batches(groups, processes):
-    """``groups`` dealt out to at most ``processes`` processes in order, in equal shares."""
-    processes = max(1, min(int(processes), len(groups)))
-    share = -(-len(groups) // processes)
-    return [list(groups[i:i + share]) for i in range(0, len(groups), share)]
 
 
 def check_groups(groups):
@@ -140,23 +193,25 @@ def precompile(groups=tuple(GROUPS), processes=PROCESSES):
     groups : sequence of str
         Keys of :data:`GROUPS`.
     processes : int
-        Worker processes; the groups are dealt out to them in order, in equal shares.
+        Worker processes; the groups' parts go to them longest first, each to the first
+        process that is free.
 
     Returns
     -------
     dict
-        For each group, as :func:`compile_groups` gives it: the seconds it took (compiling,
-        or loading from the cache) and how many kernels numba compiled.
+        For each group, as :func:`compile_groups` gives it: the seconds its parts took
+        (compiling, or loading from the cache; summed over the processes) and how many kernels
+        numba compiled.
     """
     from concurrent.futures import ProcessPoolExecutor
     import multiprocessing
     check_groups(groups)
-    batches = _batches(groups, processes)
-    took = {}
-    with ProcessPoolExecutor(len(batches), mp_context=multiprocessing.get_context("spawn")) as pool:
-        for done in pool.map(compile_groups, batches):
-            took.update(done)
-    return took
+    parts = _parts(groups)
+    with ProcessPoolExecutor(processes_used(groups, processes),
+                             mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {part: pool.submit(_run, [part]) for part in parts}
+        done = {part: future.result()[0] for part, future in futures.items()}
+    return _totals(groups, done)
 
 
 def main(argv=None):

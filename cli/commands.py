@@ -232,6 +232,22 @@ def _assignments(items):
     return out
 
 
+#: The public name of :func:`_assignments`, for the subcommands in their own modules.
+assignments = _assignments
+
+
+def emit_report(document, result, args, out):
+    """Write ``document`` to ``-o`` atomically (replacing a file only with ``--force``) and
+    print it: the JSON with ``--json``, else ``str(result)``."""
+    if args.output:
+        from brdf.fitting.report import save_report
+        save_report(document, args.output, args.force)
+    if args.json:
+        out.json(document)
+    else:
+        out.text(str(result))
+
+
 def refuse_existing(args, *paths):
     """OutputError before any work if an output file exists and --force is not given."""
     from pathlib import Path
@@ -292,20 +308,13 @@ def compare(args, out):
     """Fit several specs to one table and print them ranked; exit 1 if a fit did not
     converge."""
     import brdf
-    from brdf.fitting.report import save_report
     refuse_existing(args, args.output)
     result = brdf.compare(read_table(args.data), args.specs, by=args.by, loss=args.loss,
                           optimizer=args.optimizer, starts=args.starts,
                           energy_constraint=args.energy_constraint, cutoff=args.cutoff,
                           shared=args.shared, fix=_assignments(args.fix), seed=args.seed,
                           max_evals=args.max_evals)
-    document = result.to_dict()
-    if args.output:
-        save_report(document, args.output, args.force)
-    if args.json:
-        out.json(document)
-    else:
-        out.text(str(result))
+    emit_report(result.to_dict(), result, args, out)
     return EXIT_OK if all(r["converged"] for r in result.rows) else EXIT_CHECK_FAILED
 
 

@@ -12,7 +12,7 @@ import signal
 import sys
 import textwrap
 
-from . import arguments, commands, demo, explore, export, precompile, render
+from . import arguments, commands, demo, explore, export, fit_images, precompile, render
 from . import viz as viz_commands
 from .output import Output
 
@@ -201,6 +201,7 @@ def build_parser():
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="the file to write")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     _fit_parser(sub)
+    fit_images.add_parser(sub, _subcommand, _fit_options, arguments)
     _compare_parser(sub)
     _batch_parser(sub)
     export.add_parser(sub, _subcommand)

@@ -8,6 +8,7 @@ import inspect
 
 import pytest
 
+import brdf.capture
 import brdf.demo
 import brdf.gonioreflectometer
 import brdf.precompile
@@ -25,6 +26,7 @@ CALLS = {
     "check": [brdf.properties.check],
     "synth": [brdf.gonioreflectometer.measure],
     "fit": [nlopt_fit.fit, mcmc.mcmc],
+    "fit-images": [brdf.capture.fit_images, nlopt_fit.fit, mcmc.mcmc],
     "compare": [compare.compare, nlopt_fit.fit],
     "batch": [batch.batch, nlopt_fit.fit],
     "render": [brdf.render.render],

@@ -14,7 +14,7 @@ from numba.core.event import Event, EventStatus
 
 import brdf
 from brdf.kernel_groups import COLD_SECONDS, KERNELS, CompileNotice, group_of
-from brdf.precompile import GROUPS, describe, precompile
+from brdf.precompile import GROUPS, describe, precompile, processes_used, starting
 from brdf.progress import reporting
 from test_cli import SCRIPT, assert_one_error_line, run
 
@@ -39,6 +39,22 @@ def test_the_command_names_a_bad_group_in_one_line(capsys):
     assert main(["render", "nope"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "unknown kernel group(s) nope" in err
+
+
+def test_the_parts_set_how_many_processes_start_and_how_long_a_cold_cache_takes():
+    assert all(len(parts) >= 1 and all(seconds > 0 for _, seconds in parts)
+               for parts in GROUPS.values())
+    assert processes_used(("tables",), 2) == 1
+    assert processes_used(("models",), 2) == len(GROUPS["models"]) == 2
+    assert processes_used(tuple(GROUPS), 64) == sum(len(p) for p in GROUPS.values())
+    total = sum(seconds for parts in GROUPS.values() for _, seconds in parts)
+    longest = max(seconds for parts in GROUPS.values() for _, seconds in parts)
+    one = starting(tuple(GROUPS), 1)
+    assert one.startswith("compiling models, fitting, tables, render in 1 process (about ")
+    assert f"about {round(total / 5) * 5} s" in one
+    # longest first, each part to the first free process: within one part of an even split
+    two = int(re.search(r"about (\d+) s", starting(tuple(GROUPS), 2)).group(1))
+    assert total / 2 <= two <= total / 2 + longest
 
 
 def test_describe_says_compiled_or_loaded():
@@ -143,9 +159,9 @@ def test_the_subcommand_compiles_a_group_and_says_how_long(capsys):
     status, out, err = run(capsys, "precompile", "models", "--json")
     assert status == 0
     data = json.loads(out)
-    assert data["processes"] == 1 and list(data["groups"]) == ["models"]
+    assert data["processes"] == 2 and list(data["groups"]) == ["models"]  # its two parts
     assert data["groups"]["models"]["seconds"] > 0.0
-    assert err.startswith("brdf-fit: precompile: compiling models in 1 process (about ")
+    assert err.startswith("brdf-fit: precompile: compiling models in 2 processes (about ")
     status, out, err = run(capsys, "precompile", "tables", "--processes", "1")
     assert status == 0 and err.startswith("brdf-fit: precompile: compiling tables")
     assert re.fullmatch(r"tables: (compiled \d+ kernels?|loaded from the cache) in [\d.]+ s\n",
@@ -178,4 +194,4 @@ def test_python_m_brdf_precompile_still_runs():
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("fitting: ")
-    assert done.stderr.startswith("brdf.precompile: compiling fitting in 1 process")
+    assert done.stderr.startswith("brdf.precompile: compiling fitting in 2 processes")

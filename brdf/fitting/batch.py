@@ -23,6 +23,7 @@ from pathlib import Path
 
 from .. import arguments
 from ..errors import BRDFError, InputError, MainGuardError
+from ..io.files import file_sha256
 from ..progress import task
 
 __all__ = ["batch", "BatchResult", "STATUSES"]
@@ -101,21 +102,13 @@ def _report_names(paths):
     return names
 
 
-def _sha256(path):
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def _matching_report(report_path, path, spec, options):
     """The report at ``report_path`` if it was fitted from this input (SHA-256), spec, seed and
     options, else None."""
     try:
         report = json.loads(Path(report_path).read_text(encoding="utf-8"))
         prov = report["provenance"]
-        same = (prov["input"]["sha256"] == _sha256(path) and prov["spec"] == spec
+        same = (prov["input"]["sha256"] == file_sha256(path) and prov["spec"] == spec
                 and prov["seed"] == options["seed"] and _same_options(prov["options"], options))
     except (OSError, ValueError, KeyError, TypeError):
         return None

@@ -23,7 +23,7 @@ from ..errors import FormatError, OutputError
 from ..memory import format_bytes
 
 __all__ = ["check_file", "read_bytes", "read_head", "read_text", "read_json", "parse_json", "parse_toml",
-           "atomic_output", "remove_stale_temporaries", "MAX_BYTES"]
+           "atomic_output", "remove_stale_temporaries", "file_sha256", "MAX_BYTES"]
 
 #: Size cap of a reader that names none: 1 GiB, far above any measured table in a text or
 #: archive format (MERL's binary files are 35 MB, RGL's spectral .bsdf files a few MB).
@@ -61,6 +61,17 @@ def _open(path, what):
 def _too_large(path, size, limit, what):
     return FormatError(path, "", f"is {format_bytes(size)} ({size:,} bytes); {what} holds at "
                                  f"most {format_bytes(limit)} ({limit:,} bytes)")
+
+
+def file_sha256(path):
+    """SHA-256 (hex) of a file's bytes, read in 1 MB blocks (photographs and tables are
+    large); for provenance, not for reading the file's content."""
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def check_file(path, limit=MAX_BYTES, what="a data file"):

@@ -442,11 +442,17 @@ def _roughness(lobe, name, params, notes):
                  + (", geometry_tangent = the bitangent (rougher along y)" if ay > ax else "")
                  + (f" (OpenPBR: alpha_t = r^2 sqrt(2 / (1 + (1 - a)^2)), alpha_b = (1 - a) "
                     f"alpha_t), " + ("approximate: roughness capped at 1" if capped else "exact")))
+    _ggx_only_notes(lobe, name, "OpenPBR", "OpenPBR", notes)
+
+
+def _ggx_only_notes(lobe, name, shader, owner, notes):
+    """Notes on what a GGX-only shader with height-correlated masking approximates of a
+    microfacet lobe: Beckmann normals, separable masking."""
     if lobe.name == "beckmann":
-        notes.append(f"{name}: Beckmann normals -> GGX with the same alpha (OpenPBR is GGX "
+        notes.append(f"{name}: Beckmann normals -> GGX with the same alpha ({shader} is GGX "
                      "only), approximate")
     if lobe["masking"] == "separable":
-        notes.append(f"{name}: separable Smith masking -> OpenPBR's height-correlated G2, "
+        notes.append(f"{name}: separable Smith masking -> {owner}'s height-correlated G2, "
                      "approximate")
 
 
@@ -847,12 +853,7 @@ def _ss_roughness(lobe, name, params, notes):
                  + " (MaterialX's roughness_anisotropy), " + (
                      "approximate: alpha above 1 or anisotropy above 0.98 clamped"
                      if approximate else "exact"))
-    if lobe.name == "beckmann":
-        notes.append(f"{name}: Beckmann normals -> GGX with the same alpha (Standard Surface is "
-                     "GGX only), approximate")
-    if lobe["masking"] == "separable":
-        notes.append(f"{name}: separable Smith masking -> MaterialX's height-correlated G2, "
-                     "approximate")
+    _ggx_only_notes(lobe, name, "Standard Surface", "MaterialX", notes)
 
 
 def _ss_metal(lobe, name, params, notes):

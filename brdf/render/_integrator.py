@@ -31,7 +31,7 @@ machine, and with a committed reference image (to rounding, on a compiler withou
 digest). The kernels are compiled with fast-math contraction and reassociation, and a cold
 compile may round some lobes' formulas differently from kernels loaded from the cache (seen
 with GGX and measured tables): compare renders of a change with all kernels cached on both
-sides. ``benchmarks/bench_render.py`` times the Cornell box against Mitsuba 3.
+sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3 (``--all``).
 """
 
 import math
@@ -44,10 +44,10 @@ from .._jit import allocating_kernel, fetch_add, inline_kernel, kernel, parallel
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
-from ._lights import (AREA, ENV, area_pdf, emits_towards, env_pdf, env_radiance,
-                      pick_light, sample_light)
+from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light,
+                      sample_light)
 from ..models._kernels import DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS
-from ._materials import K0, K1, SHARE, bsdf_shade, material_params
+from ._materials import B0, B1, K0, K1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
@@ -84,16 +84,20 @@ def _uniform(state, j):
 # --- geometry at a hit --------------------------------------------------------------------------
 
 @inline_kernel
-def _surface(geo, i, a, b, px, py, pz):
+def _surface(geo, i, a, b, px, py, pz, uv):
     """Geometric normal n, shading normal s, tangent t and texture coordinates (u, v) at point
-    p of primitive i hit with parameters (a, b). A quad's t is a unit vector orthogonal to n."""
+    p of primitive i hit with parameters (a, b). A quad's t is a unit vector orthogonal to n.
+    A sphere's (u, v) are (0, 0) unless ``uv`` (a textured material): their arctangent and
+    arccosine were a tenth of a white furnace's render (perf: libm's atan2 and acos)."""
     j = geo.prim[i, 1]
     kind = geo.prim[i, 0]
     if kind == SPHERE:
         c = geo.sph[j]
         nx, ny, nz = (px - c[0]) / c[3], (py - c[1]) / c[3], (pz - c[2]) / c[3]
-        u = (math.atan2(ny, nx) / (2.0 * math.pi)) % 1.0
-        v = 1.0 - math.acos(min(max(nz, -1.0), 1.0)) / math.pi
+        u = v = 0.0
+        if uv:
+            u = (math.atan2(ny, nx) / (2.0 * math.pi)) % 1.0
+            v = 1.0 - math.acos(min(max(nz, -1.0), 1.0)) / math.pi
         return nx, ny, nz, nx, ny, nz, -ny, nx, 0.0, u, v
     if kind == QUAD:
         g = geo.quad[j]
@@ -338,10 +342,10 @@ def _vertices(opts, geo, mats, lights, p):
         if slot < 0:
             if env_light >= 0 and (strategy != LIGHT or specular):
                 w = 1.0
+                # one lookup of the map for the radiance and the density
+                le0, le1, le2, epdf = env_lookup(lights, env_light, dx, dy, dz)
                 if not specular and strategy == MIS:
-                    w = _power(fl[PREV, j], pmf[env_light] * env_pdf(lights, env_light, dx, dy,
-                                                                     dz))
-                le0, le1, le2 = env_radiance(lights, env_light, dx, dy, dz)
+                    w = _power(fl[PREV, j], pmf[env_light] * epdf)
                 fl[RAD, j] += fl[THR, j] * w * le0
                 fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
                 fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
@@ -354,7 +358,10 @@ def _vertices(opts, geo, mats, lights, p):
         if kind != SPHERE:
             a, b = plane_coordinates(geo.planes, slot, ox, oy, oz, dx, dy, dz, t)
         px, py, pz = ox + t * dx, oy + t * dy, oz + t * dz
-        nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(geo, hit, a, b, px, py, pz)
+        m = prim[hit, 2]
+        textured = m >= 0 and mats.mint[m, B1] > mats.mint[m, B0]
+        nx, ny, nz, sx, sy, sz, tx, ty, tz, u, v = _surface(geo, hit, a, b, px, py, pz,
+                                                            textured)
         light = prim[hit, 3]
         if light >= 0 and emits_towards(lights.lf[light], nx, ny, nz, -dx, -dy, -dz):
             if strategy != LIGHT or specular:
@@ -364,7 +371,6 @@ def _vertices(opts, geo, mats, lights, p):
                         geo, lights.lf[light], ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
                 for c in range(3):
                     fl[RAD + c, j] += fl[THR + c, j] * w * lights.lf[light, 3 + c]
-        m = prim[hit, 2]
         if il[DEPTH_, j] + 1 >= opts[DEPTH] or m < 0:
             il[END, j] = 1
             continue

@@ -81,60 +81,51 @@ def _env_pixel(env, x, y, z):
 
 
 @inline_kernel
-def env_radiance(lights, e, dx, dy, dz):
-    """RGB radiance of environment light e along world direction d (0 if e < 0); one map
-    lookup for the three channels."""
-    if e < 0:
-        return 0.0, 0.0, 0.0
-    f, env = lights.lf[e], lights.env
-    if f[0] == 0.0:
-        return f[3], f[4], f[5]
-    x, y, z = _env_local(f, dx, dy, dz)
-    i, j, _ = _env_pixel(env, x, y, z)
-    return f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2]
-
-
-@inline_kernel
-def env_pdf(lights, e, dx, dy, dz):
-    """Solid-angle density of :func:`_sample_env` for direction d: uniform over the sphere for
-    a constant environment; for a map the pixel's probability over its solid angle,
+def env_lookup(lights, e, dx, dy, dz):
+    """RGB radiance of environment light e along world direction d and the solid-angle density
+    of :func:`_sample_env` there, from one lookup of the map (its arctangent and arccosine
+    were most of an environment-lit render's vertex pass): uniform over the sphere for a
+    constant environment; for a map the pixel's probability over its solid angle,
     p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of variables)."""
     f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
-        return 1.0 / (4.0 * math.pi)
+        return f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     x, y, z = _env_local(f, dx, dy, dz)
     i, j, v = _env_pixel(env, x, y, z)
+    r, g, b = f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2]
     s = math.sin(v * math.pi)
     if s <= 0.0:
-        return 0.0
+        return r, g, b, 0.0
     p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
-    return p / (2.0 * math.pi * math.pi * s)
+    return r, g, b, p / (2.0 * math.pi * math.pi * s)
 
 
 @inline_kernel
 def _invert(cdf, u):
-    """Index i with cdf[i] <= u < cdf[i + 1] and the fraction of u within that bin."""
+    """Index i with cdf[i] <= u < cdf[i + 1] and the fraction of u within that bin. Selects,
+    not branches: each step's side is a coin toss that a branch predictor misses half the
+    time (two searches of seven steps a sample of a 64 x 128 map)."""
     lo, hi = 0, cdf.shape[0] - 1
     while hi - lo > 1:
         mid = (lo + hi) // 2
-        if cdf[mid] <= u:
-            lo = mid
-        else:
-            hi = mid
+        right = cdf[mid] <= u
+        lo = mid if right else lo
+        hi = hi if right else mid
     width = cdf[lo + 1] - cdf[lo]
     return lo, ((u - cdf[lo]) / width if width > 0.0 else 0.5)
 
 
 @inline_kernel
 def _sample_env(lights, e, u1, u2):
-    """World direction drawn from environment light e and its solid-angle density."""
+    """World direction drawn from environment light e, its radiance and its solid-angle
+    density (those of the drawn pixel, by :func:`env_lookup`'s formula)."""
     f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         z = 1.0 - 2.0 * u1
         r = math.sqrt(max(0.0, 1.0 - z * z))
         sin_phi, cos_phi = sampling.sincos_turn(u2)
-        return r * cos_phi, r * sin_phi, z, 1.0 / (4.0 * math.pi)
+        return r * cos_phi, r * sin_phi, z, f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     i, fu = _invert(rows, u1)
     j, fv = _invert(cols[i], u2)
@@ -147,7 +138,13 @@ def _sample_env(lights, e, u1, u2):
     dx = f[6] * x + f[9] * y + f[12] * z
     dy = f[7] * x + f[10] * y + f[13] * z
     dz = f[8] * x + f[11] * y + f[14] * z
-    return dx, dy, dz, env_pdf(lights, e, dx, dy, dz)
+    # the drawn pixel's radiance and density (env_lookup's formula), from (i, j) and sin theta
+    # as drawn: finding the pixel again from d cost an arctangent and an arccosine a sample
+    if sin_t <= 0.0:
+        return dx, dy, dz, 0.0, 0.0, 0.0, 0.0
+    p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
+    return (dx, dy, dz, f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2],
+            p / (2.0 * math.pi * math.pi * sin_t))
 
 
 # --- area lights ------------------------------------------------------------------------------
@@ -269,6 +266,5 @@ def sample_light(lights, geo, l, px, py, pz, u1, u2, li):
         for c in range(3):
             li[c] = f[3 + c]
         return dx, dy, dz, r, area_pdf(geo, f, px, py, pz, vx, vy, vz, r, nx, ny, nz)
-    dx, dy, dz, pdf = _sample_env(lights, l, u1, u2)
-    li[0], li[1], li[2] = env_radiance(lights, l, dx, dy, dz)
+    dx, dy, dz, li[0], li[1], li[2], pdf = _sample_env(lights, l, u1, u2)
     return dx, dy, dz, math.inf, pdf

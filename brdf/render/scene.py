@@ -365,10 +365,12 @@ _SIDES = {"front": L.FRONT, "back": L.BACK, "both": L.FRONT | L.BACK}
 class Compiled:
     """The kernels' view of a scene: ``geo``, ``mats`` and ``lights``, the named tuples of
     arrays declared beside the kernels that read them (``_intersect.Geometry``,
-    ``_materials.Materials``, ``_lights.Lights``)."""
+    ``_materials.Materials``, ``_lights.Lights``), and ``shape_of``, the index in
+    ``Scene.shapes`` of each primitive (row of ``geo.prim``)."""
 
-    def __init__(self, geo, mats, lights, bounds):
+    def __init__(self, geo, mats, lights, bounds, shape_of=None):
         self.geo, self.mats, self.lights, self.bounds = geo, mats, lights, bounds
+        self.shape_of = shape_of
 
 
 @dataclass
@@ -455,7 +457,8 @@ class Scene:
             prim[i, 3] = len(emitters)
             emitters.append((L.AREA, f, area * math.pi * f[3:6].mean()))
         lights = _pack_lights(self, emitters, scale)
-        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)))
+        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)),
+                        np.array([p[3] for p in prims], dtype=np.int64))
 
 
 def _label(item, k, kind="shape"):

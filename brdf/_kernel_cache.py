@@ -1,0 +1,129 @@
+"""Where numba keeps this package's compiled kernels, when they are stale, and how they load.
+
+numba keys a cached kernel on its own source file only, but our kernels inline functions from
+other modules of the package (a model's formula into the dispatcher), so an edit to one file
+could leave stale machine code behind. The cache locators below stamp every kernel of this
+package with a fingerprint of the source of all its kernel modules instead.
+
+numba loads a cached kernel only after it has imported and registered every implementation it
+could ever compile (``BaseContext.refresh``: its numpy, math, random, typed-container and linear
+algebra support, which imports scipy.linalg): 0.3-0.45 s of each command's start on the 2-core
+development host, for machine code that needs none of it. :func:`quick_loading` makes a kernel
+load without it; a kernel that does compile still gets it, from numba's compiler.
+
+This module holds no kernels and compiles none, so editing it leaves the cache valid; these
+hooks reach into numba internals (see :mod:`brdf._jit` for the version pin).
+"""
+
+import hashlib
+import os
+import re
+import sys
+
+from numba.core import caching
+
+_PACKAGE = os.path.dirname(os.path.abspath(__file__))
+_JIT = os.path.join(_PACKAGE, "_jit.py")
+_KERNEL_MODULE = re.compile(rb"^from \.+_jit import|^import brdf\._jit", re.M)
+#: Modules that kernels are generated from without compiling any (the family table).
+_GENERATED_FROM = (os.path.join(_PACKAGE, "models", "_kinds.py"),)
+
+
+def _package_stamp():
+    """Hash of the source of every module that compiles kernels (imports :mod:`brdf._jit`), of
+    the modules kernels are generated from, and of ``_jit`` itself: a kernel can only inline
+    code from such modules. Modules without kernels (plots, scenes, the demo, the command line,
+    this one) are left out, so editing them keeps the cache (recompiling everything costs
+    minutes on two cores)."""
+    h = hashlib.sha256()
+    for root, dirs, files in os.walk(_PACKAGE):
+        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        for name in sorted(f for f in files if f.endswith(".py")):
+            path = os.path.join(root, name)
+            with open(path, "rb") as f:
+                source = f.read()
+            if path == _JIT or path in _GENERATED_FROM or _KERNEL_MODULE.search(source):
+                h.update(os.path.relpath(path, _PACKAGE).encode() + b"\0" + source + b"\0")
+    return h.hexdigest()
+
+
+_STAMP = _package_stamp()
+
+
+class _PackageStamp:
+    """Mixin: invalidate cached kernels of this package when any of its files changes."""
+
+    def get_source_stamp(self):
+        return _STAMP
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        if not os.path.abspath(py_file).startswith(_PACKAGE + os.sep):
+            return None
+        return super().from_function(py_func, py_file)
+
+
+class _InTree(_PackageStamp, caching.InTreeCacheLocator):
+    pass
+
+
+class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
+    pass
+
+
+if _InTree not in caching.CacheImpl._locator_classes:
+    caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
+
+
+_runtime = {"ready": False}
+
+
+def _runtime_ready(target_context):
+    """What a loaded kernel's machine code links against, set up once per process: numba's
+    reference-counting runtime (its C entry points, ``NRT_*``, and the atomic operations they
+    use). numba's C helpers (``numba_*``) and Python's exception objects are registered when
+    the target context is made; a parallel kernel starts its threading layer itself, from the
+    cached kernel's own ``reload_init`` hooks."""
+    if not _runtime["ready"]:
+        from numba.core.runtime import rtsys
+        rtsys.initialize(target_context)
+        _arraymath_without_blas_probe()
+        _runtime["ready"] = True
+
+
+def _arraymath_without_blas_probe():
+    """Import ``numba.np.arraymath`` without its import-time probe for BLAS.
+
+    A cached kernel that holds any of numba's array functions imports their module on load
+    (to rebuild their environments), and ``numba.np.arraymath`` probes for BLAS on import by
+    importing all of ``scipy.linalg``: 0.1-0.25 s of a render's start. scipy is a dependency of
+    this package, so the probe's answer is known (BLAS is there); numba's linear algebra still
+    imports scipy's BLAS when a kernel using it compiles."""
+    if "numba.np.arraymath" in sys.modules:
+        return
+    from numba.np import linalg
+    probe = linalg.ensure_blas
+    linalg.ensure_blas = lambda: None
+    try:
+        from numba.np import arraymath
+    finally:
+        linalg.ensure_blas = probe
+    arraymath.ensure_blas = probe
+
+
+class _QuickLoad(caching.FunctionCache):
+    """numba's cache of one function, loading without first registering all of numba's
+    implementations (see the module docstring)."""
+
+    def load_overload(self, sig, target_context):
+        _runtime_ready(target_context)
+        with self._guard_against_spurious_io_errors():
+            return self._load_overload(sig, target_context)
+
+
+def quick_loading(dispatcher):
+    """``dispatcher`` (with ``cache=True``), loading its cached machine code without numba's
+    full set-up; returned as it is when it caches otherwise (another numba version's cache)."""
+    if type(dispatcher._cache) is caching.FunctionCache:
+        dispatcher._cache.__class__ = _QuickLoad
+    return dispatcher
