@@ -38,6 +38,7 @@ import numpy as np
 from llvmlite import ir
 from numba import prange
 from numba.core import cgutils, types
+from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
@@ -490,7 +491,8 @@ def with_last_axis(typingctx, arr, size):
 
     numba addresses ``a[k, c]`` of a C array with the shape it reads at run time, so LLVM sees
     rows of an unknown stride: it vectorises no loop that writes such rows (``out[k, c]``).
-    With the length a constant the rows are interleaved groups it vectorises."""
+    With the length a constant the rows are interleaved groups it vectorises. The view
+    shares ``arr``'s memory (a reference of its own where numba counts references)."""
     if not (isinstance(arr, types.Array) and arr.layout == "C" and arr.ndim >= 1
             and isinstance(size, types.IntegerLiteral)):
         return None
@@ -509,7 +511,8 @@ def with_last_axis(typingctx, arr, size):
             strides.insert(0, builder.mul(strides[0], extent))
         view.shape = cgutils.pack_array(builder, shape)
         view.strides = cgutils.pack_array(builder, strides)
-        return view._getvalue()
+        # a new reference to arr's memory (a no-op in kernels without reference counting)
+        return impl_ret_borrowed(context, builder, signature.return_type, view._getvalue())
 
     return arr(arr, size), codegen
 
