@@ -6,13 +6,15 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
 
 - server side: ``Explorer.set_parameter`` (a new model from the slider's value, then every
   view's arrays recomputed and pushed to the document: lobe mesh, in-plane curve, albedo curve,
-  lit-sphere preview, theta_h / theta_d slice), with the time of each view, for the draft the
+  lit-sphere and lit-object previews, theta_h / theta_d slice), with the time of each view, for the draft the
   page asks for while the slider moves and for the full update when it is let go;
 - in the browser (headless chromium through selenium, when chromium and chromedriver are
   installed): from the slider's value set in the page (as a drag moves it) to the in-plane
   curve's new data drawn at the next animation frame, the round trip through the websocket
   included; and, as the floor under it, the same round trip when the server changes one
-  two-point curve and computes nothing.
+  two-point curve and computes nothing;
+- server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
+  and phi_i change at once), and the draft with the previews under the sky map.
 
 Each sets ``ggx.alpha`` to a new value every time (alternating between two values would let
 nothing be cached either, but a fresh value rules it out).
@@ -34,9 +36,10 @@ def _alphas(n):
     return [0.05 + 0.3 * (k % 17) / 17 + 1e-4 * k for k in range(n)]
 
 
-def server_side(repeats, draft):
+def server_side(repeats, draft, lighting="key"):
     from brdf.viz.explorer import Explorer
     app = Explorer([SPEC])
+    app.set_lighting(lighting)
     # the path-traced sphere that follows a full update runs in a thread of its own: timed
     # here it would only compete with the next update for the two cores
     app.refine = False
@@ -49,6 +52,21 @@ def server_side(repeats, draft):
         for key, value in app.timings.items():
             views.setdefault(key, []).append(value)
     return totals, views
+
+
+def arrow_drag(repeats):
+    """Server side, seconds per draft update as the incident arrow is dragged on the 3-D lobe
+    (both angles change: one update, not one per slider)."""
+    from brdf.viz.explorer import Explorer
+    app = Explorer([SPEC])
+    app.refine = False
+    app.lobe.drag = [31.0, 10.0, 0, 0]  # warm-up
+    totals = []
+    for k in range(repeats):
+        start = time.perf_counter()
+        app.lobe.drag = [20.0 + 40.0 * (k % 13) / 13, 7.0 * k % 360, 0, k + 1]
+        totals.append(time.perf_counter() - start)
+    return totals
 
 
 # JavaScript: set the slider's value in the page as a drag does, then wait for the in-plane
@@ -152,8 +170,13 @@ def main():
     for draft, name in ((True, "while moving"), (False, "let go")):
         totals, views = server_side(args.repeats, draft)
         _row(f"server, {name}: all views", totals)
-        for key in ("lobe", "polar", "albedo", "sphere", "slice"):
+        for key in ("lobe", "polar", "albedo", "sphere", "object", "slice"):
             _row(f"  of which {key}", views[key])
+    _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
+    totals, views = server_side(args.repeats, True, "sky")
+    _row("server, sky map, while moving", totals)
+    for key in ("sphere", "object"):
+        _row(f"  of which {key}", views[key])
     if not args.no_browser:
         times = in_browser(args.repeats)
         if times:

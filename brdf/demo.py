@@ -426,7 +426,7 @@ def _write_report(out, summary):
                      f"({c['size'][0]} x {c['size'][1]}, {c['photo_spp']} spp, every bounce), "
                      f"then recovered from {c['pixels']:,} pixels through {c['renders']} "
                      f"renders of {c['fit_spp']} spp with other random streams. The intervals "
-                     "are the Laplace (Gauss-Newton) approximation.</p>")
+                     "are Gauss-Newton's, widened by the renders' own Monte Carlo error.</p>")
         parts.append(_table(["parameter", "truth", "estimate", "error", "95 % interval"],
                             [[r["parameter"], sig(r["truth"]), sig(r["estimate"]),
                               f"{100 * r['relative_error']:+.2f} %",

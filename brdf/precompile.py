@@ -93,6 +93,16 @@ def _render():
     render(builtin("cornell"), spp=1, size=(4, 4), seed=0)
 
 
+def _render_derivatives():
+    """The path tracer's specialisation with derivative images (the path method of
+    ``fit_images``)."""
+    import brdf
+    from .render import Derivatives, builtin, render
+    model = brdf.parse(_SPEC)
+    render(builtin("sphere", model), spp=1, size=(4, 4), seed=0,
+           derivatives=Derivatives(model, ["ggx.alpha"]))
+
+
 #: Kernel groups by name (the names of :data:`brdf.kernel_groups.KERNELS`), each compiled by
 #: small calls of the public functions that use them, in parts that compile apart (their own
 #: top-level kernels; callees they share come from whichever part compiled them first, through
@@ -101,7 +111,7 @@ def _render():
 GROUPS = {"models": ((_model_eval, 70), (_model_sampling, 35)),
           "fitting": ((_fitting_gradient, 25), (_fitting_losses, 25)),
           "tables": ((_tables, 5),),
-          "render": ((_render, 40),)}
+          "render": ((_render, 40), (_render_derivatives, 35))}
 #: Processes the parts are dealt out to by default (one per core of a 2-core machine).
 PROCESSES = 2
 

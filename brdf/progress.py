@@ -8,8 +8,10 @@ Long calls (fits, posteriors, batches, renders, the demo's stages) take ``progre
 - ``True``: the bar, wherever standard error goes (and even when quiet: it was asked for).
 - ``False``: nothing.
 - a callable: nothing on standard error; it is called as ``progress(done, total)`` each time
-  units are done (a fit's evaluations), from the thread doing the work (the explorer's page
-  shows its own bar with it).
+  units are done (a fit's evaluations) or forgone (the rest of a run's evaluation budget when
+  it converges early), from the thread doing the work, so that ``done / total`` is the
+  fraction of the work behind (the explorer's page shows it as a percentage). Work beyond
+  the planned total (a fit's energy refinement) can take ``done`` past ``total``.
 
 Lines start with the program's name: ``brdf``, or what :func:`reporting` sets (the command
 line sets ``brdf-fit`` and its ``--quiet``). Everything here goes to standard error, never
@@ -103,12 +105,14 @@ class Task:
     ----------
     count : int
         Units done so far.
+    forgone : int
+        Units of the total that will not be needed (see :meth:`forgo`).
     """
 
     def __init__(self, total, desc, unit, progress=None, units=None):
         self.total, self.desc, self.unit = total, desc, unit
         self.units = units or f"{unit}s"
-        self.count = 0
+        self.count = self.forgone = 0
         self.callback = progress if callable(progress) else None
         self.mode = mode(progress)
         self.bar = bar(total, desc, unit, True) if self.mode == "bar" else None
@@ -119,7 +123,19 @@ class Task:
         if self.bar is not None:
             self.bar.update(n)
         if self.callback is not None:
-            self.callback(self.count, self.total)
+            self.callback(self.count + self.forgone, self.total)
+
+    def forgo(self, n):
+        """``n`` units of the total will not be needed (a run that converged before its
+        budget): the bar and a callback's ``done`` move on, the count of units done does
+        not (lines report what was done)."""
+        if n <= 0:
+            return
+        self.forgone += n
+        if self.bar is not None:
+            self.bar.update(n)
+        if self.callback is not None:
+            self.callback(self.count + self.forgone, self.total)
 
     def set_postfix(self, **values):
         """Values shown after the bar (the loss of a fit); lines leave them out."""

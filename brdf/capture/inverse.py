@@ -506,13 +506,18 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
     from ..spec import parse
     from . import path
     if mcmc:
-        raise InputError("fit_images: method 'path' gives Laplace (Gauss-Newton) intervals; "
-                         "sampling its posterior (mcmc) is not available yet")
+        raise InputError("fit_images: method 'path' gives Gauss-Newton intervals widened by "
+                         "its renders' noise; sampling its posterior would take tens of "
+                         "thousands of renders (mcmc is for method 'direct')")
     if spp is not None:
         spp = integer(spp, "fit_images: spp", 1)
     max_depth = integer(max_depth if max_depth is not None else path.DEFAULT_MAX_DEPTH,
                         "fit_images: max_depth", -1)
     base = parse(spec) if isinstance(spec, str) else spec
+    if not base.uses_kernels or any(lobe.delta for lobe in base.lobes):
+        raise InputError(f"fit_images: method 'path' differentiates renders through the "
+                         f"families' kernels; {base} has a custom (numpy) or delta lobe: use "
+                         "method 'direct'")
     views = _as_views(views, response, mask)
     _refuse_existing_residuals(residuals, len(views), force)
     noise = _fixed_noise(_noise(gain, sigma), views)
@@ -586,24 +591,25 @@ def _fit_path(spec, views, *, free_scale, mcmc, seed, response, mask, gain, sigm
                "standard_errors": pf.standard_errors(problem),
                "names": list(problem.names), "covariance_x": pf.covariance.tolist(),
                "x": "each free parameter, the logarithm of log-scaled ones (roughness)",
-               "method": "Gauss-Newton covariance (J^T J)^-1 of the weighted residuals at the "
-                         "optimum" + ("" if noise is not None else
-                                      ", times the residual variance per degree of freedom")}
+               "method": "Gauss-Newton sandwich covariance (J^T J)^-1 J^T diag(r^2) J "
+                         "(J^T J)^-1 of the weighted residuals r at the optimum (HC3), plus "
+                         f"the covariance of the optimum over {path.STREAM_DRAWS} other random "
+                         "streams (the renders' own Monte Carlo error)"}
     capture = {
         "method": "path",
         "method_reference": "image-space least squares through brdf's path tracer, common "
-                            "random numbers, central-difference Jacobian (brdf.capture.path)",
+                            "random numbers, a fixed proposal per solve (detached sampling) "
+                            "and forward-mode derivatives along the paths (brdf.capture.path)",
         "start": start_note,
         "views": described, "pixels_used": int(sum(len(p) for p in yx)),
-        "iterations": pf.iterations, "renders": pf.renders,
+        "iterations": pf.iterations, "renders": pf.renders, "solves": pf.rounds,
         "noise": {"gain": gain, "sigma": sigma,
                   "quantisation": any(v.photo.step is not None for v in views),
                   "model": ("none stated (unit weights)" if noise is None else
                             "sqrt(value / gain + step^2 / 12 + sigma^2) per pixel value") +
                            ", and the render's Monte Carlo variance"},
         "scale": scale, "image_loss": image_loss, "laplace": laplace,
-        "options": {"spp": pf.spp, "max_depth": max_depth, "seed": seed,
-                    "relative_step": path.RELATIVE_STEP},
+        "options": {"spp": pf.spp, "max_depth": max_depth, "seed": seed},
     }
     if residuals is not None:
         capture["residual_images"] = written

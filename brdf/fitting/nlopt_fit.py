@@ -348,9 +348,10 @@ def _stopping(opt, max_evals, tol):
     opt.set_xtol_rel(math.sqrt(tol))
 
 
-def _run(problem, algorithm, x0, angles, options, label):
+def _run(problem, algorithm, x0, angles, options, label, budgeted=True):
     """One nlopt run from ``x0``, constrained at ``angles`` unless None: ``(x, loss, feasible,
-    record)``."""
+    record)``. A ``budgeted`` run (one of the fit's planned runs) forgoes the rest of its
+    evaluations in the progress meter when it ends early."""
     import nlopt
     tracker = _Tracker(angles is not None)
     objective = _Objective(problem, tracker, options["progress"])
@@ -363,6 +364,8 @@ def _run(problem, algorithm, x0, angles, options, label):
         code = opt.last_optimize_result()
         if code not in (nlopt.ROUNDOFF_LIMITED, nlopt.FAILURE):
             raise
+    if budgeted:
+        options["progress"].forgo(options["max_evals"] - objective.calls)
     x, loss, feasible = tracker.best()
     record = {"run": label, "optimizer": algorithm, "status": _status_name(code),
               "loss": loss, "evaluations": objective.calls,
@@ -493,7 +496,7 @@ def _refine_energy(problem, optimizer, x, angles, report, records, options):
             break
         angles = np.vstack([angles, [[energy.where["theta_i"], energy.where["phi_i"]]]])
         x, _, _, record = _run(problem, _local_of(optimizer, angles), x, angles, options,
-                               f"energy refinement {k + 1}")
+                               f"energy refinement {k + 1}", budgeted=False)
         records.append(record)
         report = check(problem.model(x))
     return x, report, angles
@@ -609,6 +612,8 @@ def fit(data, spec, *, loss="cosine-l2", optimizer="LD_LBFGS", starts=None,
     with task(runs * max_evals, "fit", "eval", progress) as meter:
         options = {"max_evals": max_evals, "tol": tol, "seed": seed, "progress": meter}
         x, records, ends = _runs(problem, optimizer, starts, angles, options)
+        # the polishing runs a fit did not need: the planned work is all behind it
+        meter.forgo(meter.total - meter.count - meter.forgone)
         optimized = time.perf_counter()
         report = check(problem.model(x))
         if angles is not None:

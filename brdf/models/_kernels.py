@@ -316,6 +316,21 @@ def lobe_derivatives(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
     lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
 
 
+@kernel
+def mixture_gradient(kinds, offs, p, ix, iy, iz, ox, oy, oz, out, d):
+    """f(wi, wo) in RGB of the sum of the lobes on the one parameter vector ``p`` into
+    ``out[0]``, and df_c / dp[j] into ``d[j, 0, c]`` for every packed parameter (0 where f does
+    not depend on it): the renderer's derivative images."""
+    for c in range(3):
+        out[0, c] = 0.0
+    for j in range(offs[kinds.shape[0]]):
+        for c in range(3):
+            d[j, 0, c] = 0.0
+    for l in range(kinds.shape[0]):
+        lobe_derivatives(kinds[l], p[offs[l]:offs[l + 1]], 3, ix, iy, iz, ox, oy, oz, out, 0,
+                         d[offs[l]:offs[l + 1]])
+
+
 @inline_kernel
 def mixture_eval(kinds, offs, p, step, nch, idx, n, ix, iy, iz, ox, oy, oz, out):
     """Add f(wi_j, wo_j), the sum of the lobes, to ``out[j, :nch]`` for each item j."""

@@ -28,11 +28,12 @@ from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Mat
                     PointLight, Quad, Scene, Sphere, SpotLight, box, rectangle)
 from .scenes import BUILTIN, builtin, load
 from .validate import validate
+from .derivatives import Derivatives
 
 __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh", "box",
            "rectangle", "Material", "PointLight", "SpotLight", "DirectionalLight",
            "GoniometricLight", "Environment", "builtin", "load", "validate", "BUILTIN",
-           "STRATEGIES"]
+           "STRATEGIES", "Derivatives"]
 
 STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
 #: Pixels along a side of the square tiles that the threads share out. A tile's packet runs
@@ -72,6 +73,9 @@ class RenderResult:
         Wall time of the sampling itself.
     compile_seconds : float
         Time of the first call's compilation or cache load (0 when already loaded).
+    derivatives : ndarray (h, w, 3, K) or None
+        The derivative images asked for (:class:`Derivatives`), in the order of its
+        parameters.
     """
 
     image: np.ndarray
@@ -82,6 +86,7 @@ class RenderResult:
     seed: int
     seconds: float
     compile_seconds: float
+    derivatives: Optional[np.ndarray] = None
 
     @property
     def samples_per_second(self):
@@ -140,7 +145,7 @@ def _seed(seed):
 
 
 def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, strategy="mis",
-           jitter=True, threads=None, progress=None, layers=True):
+           jitter=True, threads=None, progress=None, layers=True, derivatives=None):
     """Render ``scene`` (a :class:`Scene`) with the path tracer.
 
     Parameters
@@ -174,22 +179,38 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
         Also estimate the per-pixel variance and the first-hit albedo and normal (default).
         False leaves them None and renders a few per cent faster; the image is the same to
         the bit.
+    derivatives : Derivatives, optional
+        Also estimate the derivatives of the image in a material's parameters (see
+        :mod:`brdf.render.derivatives`); Russian roulette is then off.
 
     Returns
     -------
     RenderResult
     """
     import numba
-    from ._integrator import Sums, render_pass
+    from ._integrator import Gradient, Sums, render_pass
     if not isinstance(scene, Scene):
         raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "
                          f"load()), got {type(scene).__name__}")
+    if derivatives is not None and not isinstance(derivatives, Derivatives):
+        raise InputError(f"render: derivatives must be a brdf.render.Derivatives, got "
+                         f"{type(derivatives).__name__}")
     w, h, spp, depth, rr_depth, threads = _options(size, spp, max_depth, rr_depth, strategy,
                                                    threads)
     seed = _seed(seed)
-    require(w * h * (PIXEL_BYTES if layers else PIXEL_BYTES_RGB),
-            f"a {w} x {h} render{' with layers' if layers else ''}")
-    compiled = scene.compile()
+    slots = derivatives.slots() if derivatives is not None else np.zeros((0, 1), np.int64)
+    require(w * h * ((PIXEL_BYTES if layers else PIXEL_BYTES_RGB) + 8 * 3 * len(slots)),
+            f"a {w} x {h} render{' with layers' if layers else ''}"
+            f"{f' and {len(slots)} derivative images' if len(slots) else ''}")
+    target = evaluate = -1
+    if derivatives is None:
+        compiled = scene.compile()
+    else:
+        compiled = scene.compile(extra=[derivatives.evaluate if derivatives.evaluate is not None
+                                        else derivatives.material])
+        target, evaluate = derivatives.check(compiled)
+        rr_depth = MAX_DEPTH  # see brdf.render.derivatives
+    dacc = np.zeros((h, w, 3, len(slots)))
     cam = scene.camera.pack(w, h)
     acc = np.zeros((h, w, 3))
     # without layers the kernel never touches these
@@ -200,14 +221,17 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     if threads is not None:
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     opts = np.array([w, h, depth, rr_depth, STRATEGIES[strategy], int(bool(jitter)),
-                     TILE, numba.get_num_threads(), int(bool(layers))], dtype=np.int64)
+                     TILE, numba.get_num_threads(), int(bool(layers)), target, evaluate],
+                    dtype=np.int64)
     try:
         t0 = time.perf_counter()
         # the first call compiles (or loads the cache); time it apart, on a 1-pixel image
         probe = opts.copy()
         probe[0] = probe[1] = 1
         render_pass(*args, probe, seed, 0, 1, Sums(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)),
-                                                   np.zeros((1, 1, 6))))
+                                                   np.zeros((1, 1, 6))),
+                    None if derivatives is None else
+                    Gradient(slots, np.zeros((1, 1, 3, len(slots)))))
         compile_seconds = time.perf_counter() - t0
         with task(int(spp), "render", "spp", progress, units="spp") as meter:
             t0 = time.perf_counter()
@@ -217,15 +241,18 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
             chunk = max(1, min(int(spp), PASS_PATHS // max(w * h, 1)))
             for s0 in range(0, int(spp), chunk):
                 s1 = min(int(spp), s0 + chunk)
-                render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov))
+                render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov),
+                            None if derivatives is None else Gradient(slots, dacc))
                 meter.update(s1 - s0)
             seconds = time.perf_counter() - t0
     finally:
         numba.set_num_threads(old)
     n = float(spp)
     mean = acc / n
+    grad = dacc / n if derivatives is not None else None
     if not layers:
-        return RenderResult(mean, None, None, None, int(spp), seed, seconds, compile_seconds)
+        return RenderResult(mean, None, None, None, int(spp), seed, seconds, compile_seconds,
+                            grad)
     var = np.maximum(acc2 / n - mean * mean, 0.0) / max(n - 1.0, 1.0)
     return RenderResult(mean, var, aov[..., :3] / n, aov[..., 3:] / n, int(spp), seed, seconds,
-                        compile_seconds)
+                        compile_seconds, grad)

@@ -8,6 +8,12 @@ path's vertex is set up on its own, then the paths on each material are shaded t
 (:mod:`._materials`, one lobe at a time over them), and the shadow rays go through the tree
 together again. A finished path's lane takes the tile's next (pixel, sample) pair at once.
 
+With derivative images asked for (:data:`Gradient`), each path also carries the derivatives of
+its throughput and radiance in a material's parameters (forward mode): :func:`_shade_target`
+evaluates f and its gradient on that material, :func:`_carry` and :func:`_emitted` apply the
+product rule, and :func:`_settle_derivatives` adds them to the pixel's sums. Without them
+``grad`` is None, whose type makes numba leave those passes out of the compiled kernels.
+
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
 bit whatever the number of threads.
@@ -46,14 +52,16 @@ from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHER
                          plane_coordinates, trace_packet)
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light,
                       sample_light)
-from ..models._kernels import DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS
-from ._materials import B0, B1, K0, K1, SHARE, bsdf_shade, material_params
+from ..models._kernels import DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient
+from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
 #: threads (passed in: numba.get_num_threads inside a kernel keeps numba from caching it),
-#: whether to estimate the extra layers (first-hit albedo and normal, the squared radiance)
-W, H, DEPTH, RR, STRATEGY, JITTER, TILE, THREADS, LAYERS = range(9)
+#: whether to estimate the extra layers (first-hit albedo and normal, the squared radiance),
+#: the material whose parameters the derivative images follow (-1: none; see :data:`Gradient`)
+#: and the material whose parameters f is evaluated with on its surfaces
+W, H, DEPTH, RR, STRATEGY, JITTER, TILE, THREADS, LAYERS, TARGET, EVALUATE = range(11)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 
@@ -198,9 +206,11 @@ FLOAT_LAYOUT = (
     ("LI", 3, "the light sample's incident radiance (or irradiance of a delta light)"),
     ("LPDF", 1, "its solid-angle density"),
     ("LPICK", 1, "the probability of picking its light"),
+    ("EMIT", 3, "what emission seen at the vertex added per unit throughput"),
     ("U", UNIFORMS, "the vertex's uniform numbers (see _draw and below)"),
 )
-(RAY, T, THR, RAD, PREV, N, S, A, B, Q, LI, LPDF, LPICK, U), FLOAT_ROWS = _offsets(FLOAT_LAYOUT)
+(RAY, T, THR, RAD, PREV, N, S, A, B, Q, LI, LPDF, LPICK, EMIT, U), FLOAT_ROWS = _offsets(
+    FLOAT_LAYOUT)
 O, D = RAY + ORIGIN, RAY + DIRECTION
 #: rows of ``il``, block by block
 INT_LAYOUT = (
@@ -211,6 +221,7 @@ INT_LAYOUT = (
     ("SPECULAR", 1, "whether its last bounce was specular"),
     ("HIT", 1, "the slot its ray hit (-1: none)"),
     ("MAT", 1, "its shading batch (its material's SHARE)"),
+    ("MATERIAL", 1, "its material"),
     ("NEE", 1, "the lane of sh that holds its shadow ray (-1: none)"),
     ("BLOCKER", 1, "what the shadow ray in each lane of sh hit"),
     ("END", 1, "whether the path ends at this vertex"),
@@ -219,8 +230,8 @@ INT_LAYOUT = (
     ("COUNT", 1, "the lengths of the lists of lanes"),
     ("LIST", 5, "the lists of lanes of a shading batch (see bsdf_shade)"),
 )
-(ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, NEE, BLOCKER, END, ENTERS, CHOSEN, COUNT,
- LIST), INT_ROWS = _offsets(INT_LAYOUT)
+(ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, MATERIAL, NEE, BLOCKER, END, ENTERS,
+ CHOSEN, COUNT, LIST), INT_ROWS = _offsets(INT_LAYOUT)
 #: rows of ``sh``, block by block
 SHADOW_LAYOUT = (
     ("RAY", RAY_ROWS, "the shadow ray, from Q towards the light"),
@@ -238,10 +249,27 @@ ROW = PACKET + 8
 #: (INT_LAYOUT) and ``sh`` (SHADOW_LAYOUT), a row of ROW numbers per field; the lanes' random
 #: ``state``; tracing's reciprocal directions ``inv``, ``stack`` and ``dist``; the BSDF query
 #: sets ``q`` and values ``f`` (:func:`brdf.models._kernels.mixture_batch`); the lanes' packed
-#: material parameters ``lp``; shading's ``sel`` and ``work``; a light sample's radiance ``li``.
-Packet = namedtuple("Packet", "fl il state sh inv stack dist q f lp sel work li")
+#: material parameters ``lp``; shading's ``sel`` and ``work``; a light sample's radiance ``li``;
+#: for derivative images (K of them, 0 without), ``dl (2, 3, K, ROW)`` the derivatives of the
+#: throughput (0) and the gathered radiance (1) per channel, ``df (2, PACKET, 3, K)`` those of
+#: ``f`` (set PAIR: f; set DRAW: the weight f cos / pdf), and the work space of one evaluation
+#: of f with its derivatives: ``fv (1, 3)``, ``dv (P, 1, 3)`` and the parameter row ``theta``.
+Packet = namedtuple("Packet", "fl il state sh inv stack dist q f lp sel work li dl df fv dv "
+                              "theta")
 #: The running sums of a pass (:func:`render_pass`): radiance, its square, first-hit layers.
 Sums = namedtuple("Sums", "acc acc2 aov")
+#: Derivative images (:func:`render_pass`), of the pixels' radiance in K directions of the
+#: packed parameters of material opts[TARGET]: direction k moves the slots ``slots[k]`` (-1
+#: pads a row) together, and ``acc (h, w, 3, K)`` sums the derivatives of the paths' radiance.
+#:
+#: The estimator is detached sampling (Zeltner et al. 2021, "Monte Carlo Estimators for
+#: Differential Light Transport", detached sampling): paths are drawn, weighed by MIS and ended exactly
+#: as on material opts[TARGET] (the proposal), while f on its surfaces is that of material
+#: opts[EVALUATE]; a path's radiance is then a smooth function of the evaluated parameters, its
+#: derivative the sum over the path's factors f_theta of the others times df_theta (forward
+#: mode, carried along the path), and both are unbiased for the image and its derivatives at
+#: theta. Russian roulette would end paths on the evaluated throughput: the caller turns it off.
+Gradient = namedtuple("Gradient", "slots acc")
 
 
 @inline_kernel
@@ -283,7 +311,7 @@ def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
 
 
 @kernel
-def _advance(cam, opts, seed, tile, s0, total, start, p, sums):
+def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     """Move every lane on: a shaded path adds its light sample where the shadow ray got through
     and turns into its sampled direction (or ends: no sample, below the surface, Russian
     roulette); a path that ended goes into its pixel's running sums, and its lane takes the
@@ -301,11 +329,19 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums):
     x, y, s = k % tw, k // tw, start // npix
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
+            if grad is not None:
+                _carry(mis, p, j)
             _bounce(opts, mis, layers, p, sums.aov, j)
         if il[ALIVE, j] and il[END, j]:
+            if grad is not None:
+                _settle_derivatives(fl, il, p.dl, grad.acc, j)
             _settle(layers, fl, il, sums, j)
         if not il[ALIVE, j] and start < total:
             _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, p.state, j)
+            if grad is not None:
+                for c in range(3):
+                    for k in range(p.dl.shape[2]):
+                        p.dl[0, c, k, j] = p.dl[1, c, k, j] = 0.0
             start += 1
             x += 1
             if x == tw:
@@ -335,6 +371,7 @@ def _vertices(opts, geo, mats, lights, p):
         sh[LENGTH, j] = -1.0  # idle (slots below j are taken or idle already)
         if not il[ALIVE, j]:
             continue
+        fl[EMIT, j] = fl[EMIT + 1, j] = fl[EMIT + 2, j] = 0.0
         specular = il[SPECULAR, j] != 0
         ox, oy, oz = fl[O, j], fl[O + 1, j], fl[O + 2, j]
         dx, dy, dz = fl[D, j], fl[D + 1, j], fl[D + 2, j]
@@ -349,6 +386,7 @@ def _vertices(opts, geo, mats, lights, p):
                 fl[RAD, j] += fl[THR, j] * w * le0
                 fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
                 fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
+                fl[EMIT, j], fl[EMIT + 1, j], fl[EMIT + 2, j] = w * le0, w * le1, w * le2
             il[END, j] = 1
             continue
         t = fl[T, j]
@@ -371,6 +409,7 @@ def _vertices(opts, geo, mats, lights, p):
                         geo, lights.lf[light], ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
                 for c in range(3):
                     fl[RAD + c, j] += fl[THR + c, j] * w * lights.lf[light, 3 + c]
+                    fl[EMIT + c, j] = w * lights.lf[light, 3 + c]
         if il[DEPTH_, j] + 1 >= opts[DEPTH] or m < 0:
             il[END, j] = 1
             continue
@@ -396,7 +435,7 @@ def _vertices(opts, geo, mats, lights, p):
             q[s, GIVEN + 1, j] = -(dx * bx + dy * by + dz * bz)
             q[s, GIVEN + 2, j] = -(dx * sx + dy * sy + dz * sz)
         material_params(mats, m, u, v, lp[j])
-        il[MAT, j] = mats.mint[m, SHARE]
+        il[MAT, j], il[MATERIAL, j] = mats.mint[m, SHARE], m
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
         fl[Q, j], fl[Q + 1, j], fl[Q + 2, j] = qx, qy, qz
         # next-event estimation: a light, a point or direction on it, and its shadow ray
@@ -468,6 +507,34 @@ def _shade(opts, mats, p):
 
 
 @inline_kernel
+def _light_scale(mis, fl, q, j):
+    """What path j's light sample adds per unit of throughput times f times the light's
+    radiance: cos over the sample's density and pick probability, times the MIS weight."""
+    lpdf, pick = fl[LPDF, j], fl[LPICK, j]
+    cos_l = max(q[PAIR, DRAWN + 2, j], 0.0)
+    w = _power(pick * lpdf, q[PAIR, PDF, j]) if mis else 1.0
+    return cos_l / pick if lpdf == math.inf else w * cos_l / (pick * lpdf)
+
+
+@inline_kernel
+def _carry(mis, p, j):
+    """The derivatives of path j's light sample and of its throughput's next factor (forward
+    mode, before :func:`_bounce` adds the one and multiplies the other): d(T f L s) =
+    (dT f + T df) L s, d(T g) = dT g + T dg, with f and g the path's values at this vertex."""
+    fl, q, f, dl, df = p.fl, p.q, p.f, p.dl, p.df
+    lit = _lit(p.il, p.sh, j)
+    scale = _light_scale(mis, fl, q, j)
+    for c in range(3):
+        t, fp, g = fl[THR + c, j], f[PAIR, j, c], f[DRAW, j, c]
+        li = fl[LI + c, j] * scale
+        for k in range(dl.shape[2]):
+            dt = dl[0, c, k, j]
+            if lit:  # an unlit lane's f and L are stale
+                dl[1, c, k, j] += (dt * fp + t * df[PAIR, j, c, k]) * li
+            dl[0, c, k, j] = dt * g + t * df[DRAW, j, c, k]
+
+
+@inline_kernel
 def _bounce(opts, mis, layers, p, aov_acc, j):
     """Path j adds its light sample where the shadow ray got through, then turns into its
     sampled direction, or ends (END) where there is none, below the surface, or by Russian
@@ -477,10 +544,7 @@ def _bounce(opts, mis, layers, p, aov_acc, j):
     # a select, not a branch (see _lit): an unlit lane's numbers are stale, and whatever they
     # make is dropped
     lit = _lit(il, p.sh, j)
-    lpdf, pick = fl[LPDF, j], fl[LPICK, j]
-    cos_l = max(q[PAIR, DRAWN + 2, j], 0.0)
-    w = _power(pick * lpdf, q[PAIR, PDF, j]) if mis else 1.0
-    scale = cos_l / pick if lpdf == math.inf else w * cos_l / (pick * lpdf)
+    scale = _light_scale(mis, fl, q, j)
     for c in range(3):
         light = fl[THR + c, j] * f[PAIR, j, c] * fl[LI + c, j] * scale
         fl[RAD + c, j] += light if lit else 0.0
@@ -529,47 +593,131 @@ def _settle(layers, fl, il, sums, j):
     il[ALIVE, j] = 0
 
 
+@inline_kernel
+def _settle_derivatives(fl, il, dl, dacc, j):
+    """Add the ended path j's derivatives to its pixel's in ``dacc`` (none where
+    :func:`_settle` drops its radiance, or where they are not finite)."""
+    x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
+    for c in range(3):
+        r = fl[RAD + c, j]
+        dropped = r != r or r == math.inf
+        for k in range(dl.shape[2]):
+            d = dl[1, c, k, j]
+            dacc[y, x, c, k] += 0.0 if dropped or d - d != 0.0 else d
+
+
 @kernel
-def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, p):
+def _emitted(p):
+    """The derivatives of what emission seen at each path's vertex added: dT times it."""
+    fl, il, dl = p.fl, p.il, p.dl
+    for j in range(PACKET):
+        if not il[ALIVE, j]:
+            continue
+        for c in range(3):
+            e = fl[EMIT + c, j]
+            if e != 0.0:
+                for k in range(dl.shape[2]):
+                    dl[1, c, k, j] += dl[0, c, k, j] * e
+
+
+@kernel
+def _shade_target(opts, mats, slots, p):
+    """On the surfaces of material opts[TARGET], f and its derivatives with the parameters of
+    material opts[EVALUATE] (see :data:`Gradient`), at the direction towards the light where
+    the shadow ray got through (set PAIR: f) and at the sampled one (set DRAW: the weight f cos
+    / pdf, pdf the proposal's), into ``f`` and ``df``; every other shaded path's ``df`` is 0."""
+    fl, il, q, f, df, fv, dv, theta = p.fl, p.il, p.q, p.f, p.df, p.fv, p.dv, p.theta
+    mint = mats.mint
+    target, ev = opts[TARGET], opts[EVALUATE]
+    kinds = mats.kinds[mint[ev, K0]:mint[ev, K1]]
+    offs = mats.offs[mint[ev, O0]:mint[ev, O1]]
+    material_params(mats, ev, 0.0, 0.0, theta)
+    nd = p.dl.shape[2]
+    for j in range(PACKET):
+        if not il[ALIVE, j] or il[END, j]:
+            continue
+        for s in (PAIR, DRAW):
+            for c in range(3):
+                for k in range(nd):
+                    df[s, j, c, k] = 0.0
+        if il[MATERIAL, j] != target:
+            continue
+        for s in (PAIR, DRAW):
+            e = q[s]
+            w = 1.0
+            if s == PAIR:
+                if not _lit(il, p.sh, j):
+                    continue
+            else:
+                pdf = e[PDF, j]
+                if not (pdf > 0.0 and pdf < math.inf):
+                    continue
+                w = e[DRAWN + 2, j] / pdf
+            # f(wi = l, wo = v), the renderer's order (see _materials)
+            mixture_gradient(kinds, offs, theta, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j],
+                             e[GIVEN, j], e[GIVEN + 1, j], e[GIVEN + 2, j], fv, dv)
+            for c in range(3):
+                f[s, j, c] = fv[0, c] * w
+                for k in range(nd):
+                    d = 0.0
+                    for t in range(slots.shape[1]):
+                        i = slots[k, t]
+                        if i >= 0:
+                            d += dv[i, 0, c]
+                    df[s, j, c, k] = d * w
+
+
+@kernel
+def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
     """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) of ``tile`` into the running
     ``sums`` (see :func:`render_pass`): for each, the radiance along its camera ray, and with
     opts[LAYERS] the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading
-    normal. ``p`` is the packet's work space (:func:`_packet_space`)."""
+    normal; the derivative images into ``grad``. ``p`` is the packet's work space
+    (:func:`_packet_space`)."""
     x0, y0, x1, y1 = tile
     total = (x1 - x0) * (y1 - y0) * (s1 - s0)
     fl, il, sh = p.fl, p.il, p.sh
     start = 0
     while True:
-        start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums)
+        start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
         if busy == 0:
             return
         trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False, PACKET)
         _draw(fl, p.state)
         shading, shadows = _vertices(opts, geo, mats, lights, p)
+        if grad is not None:
+            _emitted(p)
         if shadows > 0:
             # whole SIMD registers of lanes (eight numbers: AVX-512)
             trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH], il[BLOCKER],
                          True, min(PACKET, (shadows + 7) // 8 * 8))
         if shading > 0:
             _shade(opts, mats, p)
+            if grad is not None:
+                _shade_target(opts, mats, grad.slots, p)
 
 
 @allocating_kernel
-def _packet_space(nparams, nlobes):
-    """A packet's work space, a :data:`Packet` (zeroed: idle lanes' leftovers steer the
-    packet's traversal, so they must not depend on what the memory held)."""
+def _packet_space(nparams, nlobes, nd):
+    """A packet's work space, a :data:`Packet` for ``nd`` derivative images (zeroed: idle
+    lanes' leftovers steer the packet's traversal, so they must not depend on what the memory
+    held)."""
     return Packet(np.zeros((FLOAT_ROWS, ROW)), np.zeros((INT_ROWS, ROW), np.int64),
                   np.zeros(PACKET, np.uint64), np.zeros((SHADOW_ROWS, ROW)), np.zeros((3, ROW)),
                   np.zeros(2 * STACK, np.int64), np.zeros(LANES), np.zeros((2, QUERY_ROWS, ROW)),
                   np.zeros((2, PACKET, 3)), np.zeros((PACKET, nparams)),
-                  np.zeros((PACKET, nlobes)), np.zeros((PACKET, 2)), np.zeros(3))
+                  np.zeros((PACKET, nlobes)), np.zeros((PACKET, 2)), np.zeros(3),
+                  np.zeros((2, 3, nd, ROW)), np.zeros((2, PACKET, 3, nd)), np.zeros((1, 3)),
+                  np.zeros((nparams, 1, 3)), np.zeros(nparams))
 
 
 @parallel_kernel
-def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums):
+def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
     """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
     ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
-    (h, w, 6). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
+    (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
+    its own: numba prunes the derivatives' passes from that compilation, which cost a third
+    more of the renderer's compile time). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
     by :func:`trace_tile` in a packet of paths; a tile's pixels are its own, so the sums do not
     depend on who traced it."""
     w, h, tile = opts[W], opts[H], opts[TILE]
@@ -579,6 +727,9 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums):
     nlobes = 1
     for m in range(mats.mint.shape[0]):
         nlobes = max(nlobes, mats.mint[m, K1] - mats.mint[m, K0])
+    nd = 0
+    if grad is not None:
+        nd = grad.slots.shape[0]
     # each thread takes the next tile as it finishes one: numba's parallel loop would split
     # the tiles into equal shares, and on a shared host one core can run 5-18 % slower than
     # the other for seconds at a time (measured per thread on the Cornell box)
@@ -590,5 +741,5 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums):
                 break
             x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
             trace_tile(cam, opts, geo, mats, lights, seed,
-                       (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums,
-                       _packet_space(nparams, nlobes))
+                       (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums, grad,
+                       _packet_space(nparams, nlobes, nd))

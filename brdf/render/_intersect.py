@@ -51,7 +51,7 @@ LANES = 16
 #: Rows of a packet's ``ray`` array (:func:`trace_packet`), a ray per column: its origin and
 #: unit direction.
 ORIGIN, DIRECTION, RAY_ROWS = 0, 3, 6
-#: Depth of the traversal stack (a median-split tree over 2^60 primitives fits).
+#: Depth of the traversal stack (:func:`.bvh.build_bvh` keeps every tree shallower).
 STACK = 64
 #: The scene's geometry as every kernel takes it (the arrays described above).
 Geometry = namedtuple("Geometry", "prim sph quad tri tri_n tri_uv box child slots planes")

@@ -5,7 +5,10 @@ The kernels take the lights as one :data:`Lights` tuple (built by
 :meth:`brdf.render.scene.Scene.compile`): ``ltype (nl,)``, ``lf (nl, 16)``, selection
 probabilities ``pmf (nl,)``, goniometric tables ``gonio (ng, GONIO_THETA, GONIO_PHI)``, the
 environment map ``env (h, w, 3)`` with its row and per-row CDFs ``rows (h + 1,)``, ``cols (h,
-w + 1)``, and ``env_light``, the index of the environment (-1: none).
+w + 1)``, their guide tables ``row_guide (h,)`` and ``col_guide (h, w)`` (:func:`_invert`), the
+cosines of its rows' edges ``env_cos (h + 1,)`` and the cos and sin of its columns' edges
+``env_edge (w + 1, 2)`` (:func:`_env_pixel`), and ``env_light``, the index of the environment
+(-1: none).
 
 Fields of ``lf`` by type (positions and directions in world space, colours RGB):
 
@@ -30,7 +33,8 @@ FRONT, BACK = 1, 2
 #: Resolution of the goniometric tables after resampling (1 degree in theta, 2 in phi).
 GONIO_THETA, GONIO_PHI = 181, 181
 #: The lights as every kernel takes them (the fields described above).
-Lights = namedtuple("Lights", "ltype lf pmf gonio env rows cols env_light")
+Lights = namedtuple("Lights", "ltype lf pmf gonio env rows cols row_guide col_guide env_cos "
+                               "env_edge env_light")
 
 
 @inline_kernel
@@ -71,30 +75,87 @@ def _env_local(f, dx, dy, dz):
 
 
 @inline_kernel
-def _env_pixel(env, x, y, z):
-    """Pixel of an equirectangular map holding direction (x, y, z) in the map's frame, with
-    Mitsuba 3's envmap layout: u = atan2(x, -z) / 2 pi, v = acos(y) / pi, row 0 at the top."""
-    h, w = env.shape[0], env.shape[1]
-    u = (math.atan2(x, -z) / (2.0 * math.pi)) % 1.0
-    v = math.acos(min(max(y, -1.0), 1.0)) / math.pi
-    return min(int(v * h), h - 1), min(int(u * w), w - 1), v
+def _acos(x):
+    """arccos x for x in [-1, 1] to 2e-8 (Abramowitz and Stegun 1964, 4.4.46, on |x|, and
+    arccos(-x) = pi - arccos x)."""
+    a = min(abs(x), 1.0)
+    p = -0.0012624911
+    p = p * a + 0.0066700901
+    p = p * a - 0.0170881256
+    p = p * a + 0.0308918810
+    p = p * a - 0.0501743046
+    p = p * a + 0.0889789874
+    p = p * a - 0.2145988016
+    p = p * a + 1.5707963050
+    r = math.sqrt(1.0 - a) * p
+    return r if x >= 0.0 else math.pi - r
+
+
+@inline_kernel
+def _atan2(y, x):
+    """atan2(y, x) in [-pi, pi] to 2e-8: the arctangent of min / max of |x| and |y|
+    (Abramowitz and Stegun 1964, 4.4.49, on [0, 1]), then its reflections into the octant."""
+    ax, ay = abs(x), abs(y)
+    hi = max(ax, ay)
+    t = min(ax, ay) / hi if hi > 0.0 else 0.0
+    t2 = t * t
+    p = 0.0028662257
+    p = p * t2 - 0.0161657367
+    p = p * t2 + 0.0429096138
+    p = p * t2 - 0.0752896400
+    p = p * t2 + 0.1065626393
+    p = p * t2 - 0.1420889944
+    p = p * t2 + 0.1999355085
+    p = p * t2 - 0.3333314528
+    r = t * (p * t2 + 1.0)
+    r = 0.5 * math.pi - r if ay > ax else r
+    r = math.pi - r if x < 0.0 else r
+    return -r if y < 0.0 else r
+
+
+@inline_kernel
+def _env_pixel(lights, x, y, z):
+    """Row and column of the equirectangular map's pixel holding direction (x, y, z) in the
+    map's frame, with Mitsuba 3's envmap layout (u = atan2(x, -z) / 2 pi, v = acos(y) / pi,
+    row 0 at the top), and sin(theta) = sqrt(1 - y^2).
+
+    The angles come from polynomials (:func:`_acos`, :func:`_atan2`: libm's arctangent,
+    arccosine and sine were most of a lookup's time), and the pixel is then settled exactly
+    against the tables of its edges: row i holds cos(pi (i + 1) / h) < y <= cos(pi i / h)
+    (``env_cos``); column j the azimuths from edge j up to edge j + 1 (``env_edge``: cos and
+    sin of 2 pi j / w), the side of an edge that (-z, x) lies on being a cross product's sign."""
+    h, w = lights.env.shape[0], lights.env.shape[1]
+    ct, edge = lights.env_cos, lights.env_edge
+    i = min(int(_acos(y) * (h / math.pi)), h - 1)
+    # the polynomial errs by far less than a row: a step to either side at most
+    while i > 0 and y > ct[i]:
+        i -= 1
+    while i < h - 1 and y <= ct[i + 1]:
+        i += 1
+    phi = _atan2(x, -z)
+    j = min(int((phi if phi >= 0.0 else phi + 2.0 * math.pi) * (w / (2.0 * math.pi))), w - 1)
+    # cross((cos a, sin a), (-z, x)) = x cos a + z sin a: its sign says which side of edge a
+    if edge[j, 0] * x + edge[j, 1] * z < 0.0:
+        j = j - 1 if j > 0 else w - 1
+    elif edge[j + 1, 0] * x + edge[j + 1, 1] * z >= 0.0:
+        j = j + 1 if j < w - 1 else 0
+    return i, j, math.sqrt(max(0.0, (1.0 - y) * (1.0 + y)))
 
 
 @inline_kernel
 def env_lookup(lights, e, dx, dy, dz):
     """RGB radiance of environment light e along world direction d and the solid-angle density
-    of :func:`_sample_env` there, from one lookup of the map (its arctangent and arccosine
-    were most of an environment-lit render's vertex pass): uniform over the sphere for a
-    constant environment; for a map the pixel's probability over its solid angle,
-    p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of variables)."""
+    of :func:`_sample_env` there, from one lookup of the map (:func:`_env_pixel`): uniform
+    over the sphere for a constant environment; for a map the pixel's probability over its
+    solid angle, p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of
+    variables)."""
     f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         return f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     x, y, z = _env_local(f, dx, dy, dz)
-    i, j, v = _env_pixel(env, x, y, z)
+    i, j, s = _env_pixel(lights, x, y, z)
     r, g, b = f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2]
-    s = math.sin(v * math.pi)
     if s <= 0.0:
         return r, g, b, 0.0
     p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
@@ -102,18 +163,20 @@ def env_lookup(lights, e, dx, dy, dz):
 
 
 @inline_kernel
-def _invert(cdf, u):
-    """Index i with cdf[i] <= u < cdf[i + 1] and the fraction of u within that bin. Selects,
-    not branches: each step's side is a coin toss that a branch predictor misses half the
-    time (two searches of seven steps a sample of a 64 x 128 map)."""
-    lo, hi = 0, cdf.shape[0] - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        right = cdf[mid] <= u
-        lo = mid if right else lo
-        hi = hi if right else mid
-    width = cdf[lo + 1] - cdf[lo]
-    return lo, ((u - cdf[lo]) / width if width > 0.0 else 0.5)
+def _invert(cdf, guide, u):
+    """Index i with cdf[i] <= u < cdf[i + 1] and the fraction of u within that bin. The bin
+    is found from a guide table (``guide[k]``: the bin holding k / n, n bins) and a step or
+    two on (Chen and Asau 1974, "On generating random variates from an empirical
+    distribution"; Devroye 1986, III.2.4): the bisection's bin, in one or two dependent loads
+    instead of seven."""
+    n = guide.shape[0]
+    i = guide[min(max(int(u * n), 0), n - 1)]
+    while i > 0 and cdf[i] > u:  # u * n rounded up onto the next guide
+        i -= 1
+    while i < n - 1 and cdf[i + 1] <= u:
+        i += 1
+    width = cdf[i + 1] - cdf[i]
+    return i, ((u - cdf[i]) / width if width > 0.0 else 0.5)
 
 
 @inline_kernel
@@ -127,8 +190,8 @@ def _sample_env(lights, e, u1, u2):
         sin_phi, cos_phi = sampling.sincos_turn(u2)
         return r * cos_phi, r * sin_phi, z, f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
-    i, fu = _invert(rows, u1)
-    j, fv = _invert(cols[i], u2)
+    i, fu = _invert(rows, lights.row_guide, u1)
+    j, fv = _invert(cols[i], lights.col_guide[i], u2)
     # theta = pi (i + fu) / h and phi = 2 pi (j + fv) / w, in turns
     sin_t, cos_t = sampling.sincos_turn(0.5 * (i + fu) / h)
     sin_p, cos_p = sampling.sincos_turn((j + fv) / w)

@@ -51,6 +51,13 @@ DRAFT_SPHERE_SIZE = 64
 #: Pixels across the theta_h / theta_d slice, full and draft, and the decades its log colours
 #: span under the peak (as brdf.viz.slice_plot).
 SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
+#: The slice selector's entry that follows the first material shown.
+FIRST_SHOWN = "first material shown"
+#: The previews' lighting choices: the key light and a uniform environment, or the bundled
+#: sky map (brdf.viz.view_data.sky_map), previewed as this many median-cut lights (fewer
+#: while a slider moves: each costs an evaluation per pixel).
+LIGHTING = {"key light + environment": "key", "sky map": "sky"}
+SKY_LIGHTS, DRAFT_SKY_LIGHTS = 32, 16
 #: Samples per pixel of the path-traced sphere that replaces the preview once the sliders
 #: rest (64 at 128 x 128: about 0.25 s for lambert + ggx on this machine).
 REFINE_SPP = 64
@@ -84,7 +91,7 @@ def material_from(subject):
     return brdf.parse(text)
 
 
-@dataclass
+@dataclass(eq=False)  # the same material is the same object (the slice selector's values)
 class Material:
     """One material in the explorer: what it draws, its label and colour, whether it shows."""
 
@@ -95,6 +102,16 @@ class Material:
     solo: bool = False
     widgets: list = field(default_factory=list)
     albedo_cache: tuple = None
+
+
+def _short_name(material):
+    """A material's name that its sliders do not change: its lobes' families, or the table's
+    file name."""
+    model = material.model
+    if is_table(model):
+        return os.path.basename(material.label)[:40]
+    names = model.lobe_names() if hasattr(model, "lobe_names") else [model.name]
+    return " + ".join(names)[:40]
 
 
 def _message(exc):
@@ -141,32 +158,65 @@ class Explorer:
 
     # -- materials --------------------------------------------------------------------------
 
-    def add(self, subject):
-        """Add a material (see :func:`material_from`); errors propagate."""
+    def add(self, subject, label=None):
+        """Add a material (see :func:`material_from`), a table under ``label`` if given (else
+        its path); errors propagate."""
         model = material_from(subject)
         colour = COLOURS[len(self.materials) % len(COLOURS)]
-        label = str(subject) if is_table(model) else str(model)
+        label = (label or str(subject)) if is_table(model) else str(model)
         material = Material(model, label, colour)
         self.materials.append(material)
         self._material_card(material)
         self._add_glyphs(material)
+        self._slice_options()
         return material
 
-    def add_from_text(self, text):
+    def add_from_text(self, text, label=None, hide=None):
         """Add the material ``text`` names, as the page's text box does: an error shows its one
-        line in the page instead of raising. True when the material was added."""
+        line in the page instead of raising (less the text ``hide``, a folder the user never
+        saw). True when the material was added."""
         count = len(self.materials)
         try:
-            self.add(text)
+            self.add(text, label)
             self.update()
         except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
             if len(self.materials) > count:  # added, but its views cannot be drawn
                 self.remove(count)
-            self.error.object = _message(exc)
+            message = _message(exc)
+            self.error.object = message.replace(hide, "") if hide else message
             self.error.visible = True
             return False
         self.error.object, self.error.visible = "", False
         return True
+
+    def upload(self, filename, data):
+        """Add the measured file or JSON fit report ``data`` (bytes) uploaded from the browser
+        as ``filename``, as :meth:`add_from_text` does with a path: saved under its own name
+        in this explorer's folder of uploads (formats are told by extension, then content),
+        a bad file's one line in the page. True when the material was added."""
+        import tempfile
+        if self._uploads is None:
+            # removed with the explorer (and at exit): tables may read their file lazily
+            self._uploads = tempfile.TemporaryDirectory(prefix="brdf-explore-")
+        name = os.path.basename(str(filename or "").replace("\\", "/")) or "upload"
+        folder = tempfile.mkdtemp(dir=self._uploads.name)  # two uploads of one name coexist
+        path = os.path.join(folder, name)
+        with open(path, "wb") as out:
+            out.write(bytes(data or b""))
+        return self.add_from_text(path, label=name, hide=folder + os.sep)
+
+    def _upload_from_page(self, event):
+        """The file input's file, added on the document's next tick (see _add_from_page)."""
+        if event.new is None:
+            return
+        name, data = self.upload_input.filename, event.new
+
+        def add():
+            self.upload(name, data)
+            # forget it, here and in the page, so that the same file can come again
+            self.upload_input.param.update(value=None, filename=None)
+            self.upload_input.clear()
+        self._soon(add)
 
     def remove(self, index):
         """Remove material number ``index`` (its card and glyphs) and update."""
@@ -174,7 +224,25 @@ class Explorer:
         self.cards.remove(m.card)
         for glyph in (m.polar_glyph, m.albedo_glyph, m.albedo_band, m.samples_glyph):
             glyph.visible = False
+        self._slice_options()
         self.update()
+
+    def _slice_options(self):
+        """The slice selector's entries: the first material shown, then every material by
+        number and name (its families or file, which stay as its sliders move); a removed
+        material's choice falls back to the first."""
+        chosen = self._slice_entries.get(self.slice_select.value)
+        # the page's list holds labels: Panel sends the browser strings, not Python objects
+        self._slice_entries = {f"{k + 1}: {_short_name(m)}": m
+                               for k, m in enumerate(self.materials)}
+        value = next((label for label, m in self._slice_entries.items() if m is chosen),
+                     FIRST_SHOWN)
+        self._syncing_slice = True
+        try:
+            self.slice_select.param.update(options=[FIRST_SHOWN, *self._slice_entries],
+                                           value=value)
+        finally:
+            self._syncing_slice = False
 
     def _add_from_page(self):
         """The text box's material, added on the document's next tick: new plot glyphs must be
@@ -200,8 +268,9 @@ class Explorer:
     # -- computation ------------------------------------------------------------------------
 
     def view_data(self, material, draft=False):
-        """The arrays every view draws for ``material`` at the current incidence (timed);
-        a ``draft`` has a coarser albedo curve and a smaller sphere."""
+        """The arrays every view draws for ``material`` at the current incidence (timed),
+        but the slice (:meth:`slice_material`); a ``draft`` has a coarser albedo curve and a
+        smaller sphere."""
         thetas = DRAFT_ALBEDO_THETA if draft else ALBEDO_THETA
         wi = incidence(self.theta_i, self.phi_i)
         model, out, times = material.model, {}, {}
@@ -225,15 +294,28 @@ class Explorer:
         times["albedo"] = time.perf_counter() - start
         start = time.perf_counter()
         # the environment's term needs the albedo at theta_o: the curve just computed
+        # under the sky map: its median-cut lights, fewer in a draft
+        lights = None if self.lighting == "key" else view_data.sky_lights(
+            DRAFT_SKY_LIGHTS if draft else SKY_LIGHTS)
         out["sphere"] = view_data.sphere_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"])
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
+            lights=lights)
         times["sphere"] = time.perf_counter() - start
-        if material is self._shown()[0]:  # the slice shows the first material shown
-            start = time.perf_counter()
-            out["slice"] = view_data.slice_image(model, self.phi_d,
-                                                 DRAFT_SLICE_SIZE if draft else SLICE_SIZE)
-            times["slice"] = time.perf_counter() - start
+        start = time.perf_counter()
+        out["object"] = view_data.object_preview(
+            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
+            lights=lights)
+        times["object"] = time.perf_counter() - start
         return out, times
+
+    def slice_material(self):
+        """The material the theta_h / theta_d slice shows: the one chosen in the page's
+        *slice of* list (shown or not), else the first material shown; None when none is."""
+        chosen = self._slice_entries.get(self.slice_select.value)
+        if chosen is not None and any(m is chosen for m in self.materials):
+            return chosen
+        shown = self._shown()
+        return shown[0] if shown else None
 
     def update(self, draft=False):
         """Recompute every view of every material and push the arrays to the page.
@@ -253,11 +335,19 @@ class Explorer:
                     data[id(m)], times = self.view_data(m, draft)
                     for key, value in times.items():
                         timings[key] = timings.get(key, 0.0) + value
+            sliced, image = self.slice_material(), None
+            if sliced is not None:
+                begin = time.perf_counter()
+                image = view_data.slice_image(sliced.model, self.phi_d,
+                                              DRAFT_SLICE_SIZE if draft else SLICE_SIZE)
+                timings["slice"] = time.perf_counter() - begin
         self._draw(data, shown)
+        self._draw_slice(sliced, image)
         timings["total"] = time.perf_counter() - start
         self._refines = getattr(self, "_refines", 0) + 1
         if not draft and shown and self.refine:
-            self.refine_thread = self._refine([m.model for m in shown], self._refines)
+            self.refine_thread = self._refine([m.model for m in shown], self._refines,
+                                              self.lighting)
         self.timings = timings
 
     # -- the page ---------------------------------------------------------------------------
@@ -279,11 +369,18 @@ class Explorer:
         self.log_box = pn.widgets.Checkbox(label="log radius", value=self.log)
         self.cosine_box.param.watch(lambda e: self._option(cosine=e.new), "value")
         self.log_box.param.watch(lambda e: self._option(log=e.new), "value")
+        self.lighting = "key"
+        self.lighting_select = pn.widgets.RadioButtonGroup(options=list(LIGHTING),
+                                                           value=next(iter(LIGHTING)))
+        self.lighting_select.param.watch(lambda e: self.set_lighting(LIGHTING[e.new]), "value")
         self.spec_input = pn.widgets.TextInput(label="add a material",
                                                placeholder="spec, fit report or measured file")
         self.add_button = pn.widgets.Button(label="add", color="primary")
         self.add_button.on_click(lambda e: self._add_from_page())
         self.spec_input.param.watch(lambda e: self._add_from_page(), "enter_pressed")
+        self._uploads = None
+        self.upload_input = pn.widgets.FileInput(multiple=False, width=300)
+        self.upload_input.param.watch(self._upload_from_page, "value")
         self.error = pn.pane.Alert("", alert_type="danger", visible=False,
                                    css_classes=["brdf-error"])
         self.cards = pn.Column(sizing_mode="stretch_width")
@@ -320,25 +417,39 @@ class Explorer:
         self.sphere.grid.visible = False
         self.sphere_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="spheres")
         self.sphere.image_rgba("image", x="x", y=0, dw="dw", dh=1, source=self.sphere_source)
+        self.object_view = figure(title="lit object (direct light)", frame_width=SPHERE_PIXELS,
+                                  frame_height=SPHERE_PIXELS, tools="save", name="object",
+                                  x_range=(0, 1), y_range=(0, 1), min_border=0)
+        self.object_view.axis.visible = False
+        self.object_view.grid.visible = False
+        self.object_source = ColumnDataSource({"image": [], "x": [], "dw": []}, name="objects")
+        self.object_view.image_rgba("image", x="x", y=0, dw="dw", dh=1,
+                                    source=self.object_source)
 
         self._build_slice(pn)
         self.lobe = lobe_canvas_class()(size=420, width=420, height=420)
-        self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom",
+        self.lobe.param.watch(lambda e: self._aim(*e.new[:3]) if e.new else None, "drag")
+        self.lobe_title = pn.pane.Markdown("**3-D lobe**: drag to turn, wheel to zoom; drag "
+                                           "the orange tip (or Shift-drag) to move the light",
                                            margin=(0, 10))
 
         controls = pn.Column(
             pn.pane.Markdown("### Incidence"), self.theta_slider, self.phi_slider,
             pn.Row(self.cosine_box, self.log_box),
             pn.pane.Markdown("### Materials"), pn.Row(self.spec_input, self.add_button),
+            pn.pane.Markdown("or upload a measured file or a JSON fit report:",
+                             margin=(0, 10)), self.upload_input,
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
-                          pn.Row(self.sphere, pn.Column(self.phi_d_slider, self.slice)))
+                          pn.Row(pn.Column(self.lighting_select, self.sphere,
+                                           self.object_view),
+                                 pn.Column(self.slice_select, self.phi_d_slider, self.slice)))
         self.layout = pn.Row(controls, views, name="brdf explorer")
 
     def _build_slice(self, pn):
-        """The theta_h / theta_d image of the first material shown, log colour, in the MERL
-        layout (sqrt theta_h across), with its phi_d slider."""
+        """The theta_h / theta_d image of a material (:meth:`slice_material`), log colour, in
+        the MERL layout (sqrt theta_h across), with its material selector and phi_d slider."""
         from bokeh.models import ColorBar, ColumnDataSource, LogColorMapper
         from bokeh.palettes import Magma256
         from bokeh.plotting import figure
@@ -347,6 +458,11 @@ class Explorer:
                                                    end=180.0, step=1.0, value=self.phi_d,
                                                    width=300)
         self.phi_d_slider.param.watch(self._phi_d, ["value", "value_throttled"])
+        self._slice_entries = {}
+        self.slice_select = pn.widgets.Select(label="slice of", options=[FIRST_SHOWN],
+                                              value=FIRST_SHOWN, width=300)
+        self.slice_select.param.watch(
+            lambda e: None if getattr(self, "_syncing_slice", False) else self.update(), "value")
         self.slice = figure(title="theta_h / theta_d slice", width=340, height=300,
                             x_range=(0, 1), y_range=(0, 90), tools="save,hover",
                             name="slice", tooltips=[("f_r", "@image")])
@@ -428,8 +544,8 @@ class Explorer:
         material.fit_spec = pn.widgets.TextInput(value=DEFAULT_FIT, width=220,
                                                  placeholder="a spec to fit")
         material.fit_button = pn.widgets.Button(label="fit", width=60)
-        material.fit_progress = pn.indicators.Progress(active=False, value=-1, visible=False,
-                                                       width=280)
+        material.fit_progress = pn.indicators.Progress(active=False, value=-1, max=100,
+                                                       visible=False, width=280)
         material.fit_status = pn.pane.Markdown("", css_classes=["brdf-fit-status"])
         material.fit_button.on_click(lambda e: self.start_fit(material))
         return [pn.Row(material.fit_spec, material.fit_button), material.fit_progress,
@@ -483,16 +599,20 @@ class Explorer:
         spec = material.fit_spec.value if spec is None else spec
         options.setdefault("seed", 0)
         material.fit_button.disabled = True
-        material.fit_progress.param.update(visible=True, active=True)
+        # indeterminate until the first fraction arrives
+        material.fit_progress.param.update(visible=True, active=True, value=-1)
         material.fit_status.object = f"fitting `{spec}` ..."
         state = {"last": 0.0, "start": time.perf_counter()}
 
         def progress(done, total):
+            # done / total: the fraction of the fit's planned runs behind it (brdf.progress;
+            # an energy refinement after them stays at 100)
             now = time.perf_counter()
-            if now - state["last"] >= PROGRESS_EVERY:
-                state["last"] = now
-                text = f"fitting `{spec}`: {done} evaluations, {now - state['start']:.1f} s"
-                self._soon(lambda: setattr(material.fit_status, "object", text))
+            percent = min(100, int(100 * done / total)) if total else 0
+            if now - state["last"] >= PROGRESS_EVERY or (percent == 100 != state.get("sent")):
+                state["last"], state["sent"] = now, percent
+                text = f"fitting `{spec}`: {percent}% ({now - state['start']:.1f} s)"
+                self._soon(lambda: self._fit_progress(material, percent, text))
 
         def run():
             import brdf
@@ -509,6 +629,12 @@ class Explorer:
         thread.start()
         return thread
 
+    def _fit_progress(self, material, percent, text):
+        if material.fit_thread is None or not material.fit_thread.is_alive():
+            return  # a late update from a fit that has ended
+        material.fit_progress.param.update(value=percent, active=False)
+        material.fit_status.object = text
+
     def _fit_ended(self, material, result, message):
         material.fit_button.disabled = False
         material.fit_progress.param.update(visible=False, active=False)
@@ -524,33 +650,43 @@ class Explorer:
             f"verdict {result.verdict}{warnings}; shown as material {len(self.materials)}")
         self.update()
 
-    def _refine(self, models, token):
-        """Path trace the shown materials' spheres in a background thread; they replace the
-        previews unless another update came first (``token``). Returns the thread."""
+    def _refine(self, models, token, lighting="key"):
+        """Path trace the shown materials' spheres, then objects, under ``lighting`` in a
+        background thread; they replace the previews unless another update came first
+        (``token``). Returns the thread."""
         import threading
 
         def run():
-            try:
-                images = [view_data.to_rgba(view_data.sphere_render(m, SPHERE_SIZE, REFINE_SPP))
-                          for m in models]
-            except Exception as exc:  # noqa: BLE001  (the preview stays; the page says why)
-                message = _message(exc)
-                self._soon(lambda: self._refined(token, None, message))
-                return
-            self._soon(lambda: self._refined(token, images, None))
+            # the spheres first (a quarter of the time): they replace their previews sooner
+            for name, render in (("sphere", view_data.sphere_render),
+                                 ("object", view_data.object_render)):
+                if token != self._refines:
+                    return  # superseded: its own refinement follows
+                try:
+                    images = [view_data.to_rgba(render(m, SPHERE_SIZE, REFINE_SPP,
+                                                       lighting=lighting))
+                              for m in models]
+                except Exception as exc:  # noqa: BLE001  (the preview stays; the page says why)
+                    message = _message(exc)
+                    self._soon(lambda: self._refined(token, name, None, message))
+                    return
+                self._soon(lambda name=name, images=images:
+                           self._refined(token, name, images, None))
 
         thread = threading.Thread(target=run, name="brdf-explorer-refine", daemon=True)
         thread.start()
         return thread
 
-    def _refined(self, token, images, message):
+    def _refined(self, token, name, images, message):
         if token != self._refines:
             return  # a slider moved on since: that update's own refinement follows
+        view, source = ((self.sphere, self.sphere_source) if name == "sphere"
+                        else (self.object_view, self.object_source))
         if images is None:
-            self.sphere.title.text = f"lit sphere (direct light; path tracing failed: {message})"
+            view.title.text = f"lit {name} (direct light; path tracing failed: {message})"
             return
-        self.sphere_source.data = dict(self.sphere_source.data, image=images)
-        self.sphere.title.text = f"lit sphere (path traced, {REFINE_SPP} spp)"
+        source.data = dict(source.data, image=images)
+        view.title.text = f"lit {name} (path traced, {REFINE_SPP} spp)"
 
     def _slider_callback(self, material, slider):
         def moved(event):
@@ -573,12 +709,40 @@ class Explorer:
         if not draft:
             self.update()
 
+    def _aim(self, theta, phi, final):
+        """The incident arrow dragged on the 3-D lobe to (theta, phi) degrees: both sliders
+        follow (at their steps) and the views make one update, a draft until it is let go."""
+        theta = min(89.0, max(0.0, round(float(theta) * 2) / 2))
+        phi = round(float(phi)) % 360
+        self._syncing = True  # the sliders' own watchers would update once each
+        try:
+            self.theta_slider.value, self.phi_slider.value = theta, float(phi)
+        finally:
+            self._syncing = False
+        self.theta_i, self.phi_i = theta, float(phi)
+        self.update(draft=not final)
+
     def _incidence(self, theta=None, phi=None, draft=False):
+        if getattr(self, "_syncing", False):
+            return
         if theta is not None:
             self.theta_i = float(theta)
         if phi is not None:
             self.phi_i = float(phi)
         self.update(draft)
+
+    def set_lighting(self, lighting):
+        """Light the sphere and the object with ``"key"`` (the key light and a uniform
+        environment) or ``"sky"`` (the bundled sky map), and update."""
+        if lighting not in LIGHTING.values():
+            raise InputError(f"lighting {lighting!r}: expected one of "
+                             f"{', '.join(LIGHTING.values())}")
+        self.lighting = lighting
+        label = next(k for k, v in LIGHTING.items() if v == lighting)
+        if self.lighting_select.value != label:
+            self.lighting_select.value = label  # its watcher comes back here
+            return
+        self.update()
 
     def _option(self, **changes):
         for key, value in changes.items():
@@ -610,11 +774,11 @@ class Explorer:
                                                  line_color=material.colour, line_width=2)
 
     def _draw(self, data, shown):
-        from .lobe_canvas import lobe_entry
+        from .lobe_canvas import ARROW, lobe_entry
         wi = incidence(self.theta_i, self.phi_i)
         self.polar.title.text = "in-plane: r = " + ("f cos(theta_o)" if self.cosine else "f") \
             + (" (log)" if self.log else "")
-        images, xs, lobes, triangles = [], [], [], None
+        images, objects, xs, lobes, triangles = [], [], [], [], None
         peak = max([d["lobe"][3] for d in data.values()], default=1.0)
         top = 1.0
         curves = [d["polar"][1].mean(axis=-1) for d in data.values()]
@@ -655,12 +819,13 @@ class Explorer:
                 lobe["samples"] = lobe_entry(wo * r[:, None], m.colour)["points"]
             lobes.append(lobe)
             images.append(view_data.to_rgba(d["sphere"]))
+            objects.append(view_data.to_rgba(d["object"]))
             xs.append(float(len(xs)))
         self.albedo.y_range.end = 1.08 * top
         self.albedo_marker.location = self.theta_i
         self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
                                      "y": [0.0, 1.1 * wi[2]]}
-        changes = {"lobes": lobes, "incident": (1.2 * wi).tolist()}
+        changes = {"lobes": lobes, "incident": (ARROW * wi).tolist()}
         if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
             # sent when the grid changes (a draft's is coarser), with the points it indexes
             changes["triangles"] = triangles.ravel().tolist()
@@ -670,10 +835,12 @@ class Explorer:
         self.sphere.frame_width = SPHERE_PIXELS * count
         self.sphere_source.data = {"image": images, "x": xs, "dw": [1.0] * len(images)}
         self.sphere.title.text = "lit sphere (direct light)"
-        self._draw_slice(data, shown)
+        self.object_view.x_range.end = count
+        self.object_view.frame_width = SPHERE_PIXELS * count
+        self.object_source.data = {"image": objects, "x": xs, "dw": [1.0] * len(objects)}
+        self.object_view.title.text = "lit object (direct light)"
 
-    def _draw_slice(self, data, shown):
-        image = data[id(shown[0])].get("slice") if shown else None
+    def _draw_slice(self, material, image):
         if image is None:
             self.slice_source.data = {"image": []}
             self.slice.title.text = "theta_h / theta_d slice"
@@ -685,7 +852,7 @@ class Explorer:
         self.slice_source.data = {"image": [f]}
         # the material by number: a title that changes length as a slider moves would have
         # the page lay the figure out again at every move
-        number = self.materials.index(shown[0]) + 1
+        number = next(k for k, m in enumerate(self.materials) if m is material) + 1
         self.slice.title.text = f"slice of material {number}, phi_d = {self.phi_d:g}"
 
     def _repr_mimebundle_(self, include=None, exclude=None):

@@ -7,11 +7,23 @@ algorithm) and fills them flat-shaded in the material's colour. Panel's VTK pane
 measured first and took 180 to 900 ms per update in headless chromium on two busy cores: it
 synchronises the whole scene over several round trips and renders through software WebGL; this
 view redraws in a few milliseconds and needs no WebGL.
+
+Dragging the incident direction's arrow (its orange tip, or anywhere with Shift held) moves the
+incident direction instead of turning the view: the page turns the pointer into a direction on
+the sphere of the arrow's length (the upper hemisphere's point under it), draws the arrow there
+at once and sends ``drag = [theta_i, phi_i, final, serial]`` (degrees) to the server, at most
+every :data:`DRAG_EVERY_MS` while the pointer moves and once more, ``final``, when it is let go.
 """
 
 import numpy as np
 
-__all__ = ["lobe_canvas_class"]
+__all__ = ["lobe_canvas_class", "lobe_entry", "ARROW", "DRAG_EVERY_MS"]
+
+#: Length of the incident direction's arrow (and the normal's), in lobe radii.
+ARROW = 1.2
+#: Milliseconds between two incidence updates sent while the arrow is dragged: the server's
+#: draft update takes 15-60 ms on a loaded machine, so faster would only queue them.
+DRAG_EVERY_MS = 50
 
 _ESM = r"""
 function rotate(p, yaw, pitch) {
@@ -19,6 +31,13 @@ function rotate(p, yaw, pitch) {
   const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
   const x = cy * p[0] - sy * p[1], y = sy * p[0] + cy * p[1], z = p[2];
   return [x, cp * y - sp * z, sp * y + cp * z];   // screen x, depth (larger: farther), up
+}
+
+function unrotate(r, yaw, pitch) {
+  // the inverse of rotate: screen x, depth, up back to the model's x, y, z
+  const cy = Math.cos(yaw), sy = Math.sin(yaw), cp = Math.cos(pitch), sp = Math.sin(pitch);
+  const y = cp * r[1] + sp * r[2], z = -sp * r[1] + cp * r[2];
+  return [cy * r[0] + sy * y, -sy * r[0] + cy * y, z];
 }
 
 export function render({ model, el }) {
@@ -91,27 +110,88 @@ export function render({ model, el }) {
     canvas.dataset.samples = samples;
     // the incident direction (towards the light) and the normal
     const o = project([0, 0, 0], scale);
-    for (const [v, colour] of [[model.incident, "#e07b00"], [[0, 0, 1.2], "#000000"]]) {
+    for (const [v, colour] of [[model.incident, "#e07b00"], [[0, 0, ARROW], "#000000"]]) {
       const q = project(v, scale);
       ctx.beginPath(); ctx.moveTo(o[0], o[1]); ctx.lineTo(q[0], q[1]);
       ctx.strokeStyle = colour; ctx.lineWidth = 2; ctx.stroke();
     }
+    // the incident arrow's tip: a handle to drag
+    const tip = project(model.incident, scale);
+    ctx.beginPath(); ctx.arc(tip[0], tip[1], 5, 0, 2 * Math.PI);
+    ctx.fillStyle = "#e07b00"; ctx.fill();
+    canvas.dataset.incidentTip = `${tip[0].toFixed(1)},${tip[1].toFixed(1)}`;
+    canvas.dataset.view = `${model.yaw},${model.pitch},${model.zoom}`;
     canvas.dataset.drawMs = (performance.now() - t0).toFixed(2);
     canvas.dataset.faces = faces.length;
     canvas.dataset.drawn = (+canvas.dataset.drawn || 0) + 1;
   }
 
+  function pointer(e) {
+    // the pointer in canvas pixels (the canvas may be drawn at another size than its own)
+    const box = canvas.getBoundingClientRect();
+    return [(e.clientX - box.left) * canvas.width / box.width,
+            (e.clientY - box.top) * canvas.height / box.height];
+  }
+
+  function direction(e) {
+    // the incident direction under the pointer: where the view ray meets the sphere of the
+    // arrow's length, the nearer point if it is above the surface, else the farther; off the
+    // sphere, its silhouette; below the surface, the horizon (theta_i at most 89 degrees)
+    const [sx, sy] = pointer(e), scale = 0.42 * model.size * model.zoom;
+    let x = (sx - model.size / 2) / scale, up = (model.size * 0.62 - sy) / scale;
+    const rim = x * x + up * up;
+    if (rim >= ARROW * ARROW) {
+      const k = ARROW / Math.sqrt(rim);
+      x *= k; up *= k;
+    }
+    const depth = Math.sqrt(Math.max(ARROW * ARROW - x * x - up * up, 0));
+    let p = unrotate([x, -depth, up], model.yaw, model.pitch);
+    if (p[2] < 0) {
+      const far = unrotate([x, depth, up], model.yaw, model.pitch);
+      if (far[2] >= 0) p = far;
+    }
+    const len = Math.hypot(p[0], p[1], p[2]);
+    const theta = Math.min(89, Math.acos(Math.max(-1, Math.min(1, p[2] / len))) * 180 / Math.PI);
+    const phi = ((Math.atan2(p[1], p[0]) * 180 / Math.PI) % 360 + 360) % 360;
+    return [theta, phi];
+  }
+
+  let serial = 0, sent = 0;
+  function aim(e, final) {
+    const [theta, phi] = direction(e), t = theta * Math.PI / 180, f = phi * Math.PI / 180;
+    // the arrow follows the pointer at once; the views follow when the server answers
+    model.incident = [ARROW * Math.sin(t) * Math.cos(f), ARROW * Math.sin(t) * Math.sin(f),
+                      ARROW * Math.cos(t)];
+    const now = performance.now();
+    if (final || now - sent >= DRAG_EVERY_MS) {
+      sent = now;
+      model.drag = [theta, phi, final ? 1 : 0, ++serial];
+    }
+  }
+
   canvas.addEventListener("pointerdown", e => {
-    dragging = [e.clientX, e.clientY, model.yaw, model.pitch];
+    const [sx, sy] = pointer(e), tip = canvas.dataset.incidentTip.split(",").map(Number);
+    const onTip = Math.hypot(sx - tip[0], sy - tip[1]) <= 12;
+    dragging = [e.clientX, e.clientY, model.yaw, model.pitch, onTip || e.shiftKey];
+    canvas.style.cursor = dragging[4] ? "crosshair" : "grabbing";
     canvas.setPointerCapture(e.pointerId);
   });
   canvas.addEventListener("pointermove", e => {
-    if (!dragging) return;
+    if (!dragging) {
+      const [sx, sy] = pointer(e), tip = (canvas.dataset.incidentTip || "0,0").split(",");
+      canvas.style.cursor = Math.hypot(sx - tip[0], sy - tip[1]) <= 12 ? "crosshair" : "grab";
+      return;
+    }
+    if (dragging[4]) { aim(e, false); return; }
     model.yaw = dragging[2] + 0.01 * (e.clientX - dragging[0]);
     model.pitch = Math.max(-1.55, Math.min(1.55, dragging[3] + 0.01 * (e.clientY - dragging[1])));
     schedule();
   });
-  canvas.addEventListener("pointerup", () => { dragging = null; });
+  canvas.addEventListener("pointerup", e => {
+    if (dragging && dragging[4]) aim(e, true);
+    dragging = null;
+    canvas.style.cursor = "grab";
+  });
   canvas.addEventListener("wheel", e => {
     e.preventDefault();
     model.zoom = Math.max(0.2, Math.min(10, model.zoom * Math.exp(-0.001 * e.deltaY)));
@@ -144,7 +224,7 @@ def lobe_canvas_class():
             """Lobes as ``[{"points": "base64 float32 x0 y0 z0 x1 ...", "colour": "#rrggbb",
             "samples": "base64 float32 ..." (measured points, optional)}]`` over the shared
             ``triangles`` (flat indices), the ``incident`` direction, and the view's
-            ``yaw`` and ``pitch`` (radians) and ``zoom``."""
+            ``yaw`` and ``pitch`` (radians) and ``zoom``; ``drag`` comes from the page."""
 
             lobes = param.List(default=[])
             triangles = param.List(default=[])
@@ -153,7 +233,10 @@ def lobe_canvas_class():
             pitch = param.Number(default=0.35)
             zoom = param.Number(default=1.0)
             size = param.Integer(default=420)
-            _esm = _ESM
+            #: set by the page while the incident arrow is dragged: theta_i and phi_i
+            #: (degrees), 1 when let go (else 0), and a count that makes every one new
+            drag = param.List(default=[])
+            _esm = (f"const ARROW = {ARROW}, DRAG_EVERY_MS = {DRAG_EVERY_MS};\n" + _ESM)
 
         _CLASS = LobeCanvas
     return _CLASS

@@ -4,9 +4,11 @@ Each function takes a model (or anything with ``eval`` and ``albedo``) and retur
 with no browser and no plotting library involved, so every view is tested on its own and the
 explorer's update after a slider moves costs only these evaluations (``benchmarks/
 bench_explore.py``): the lobe mesh, the in-plane curve, the directional albedo curve, the lit
-sphere's direct-lighting preview, and the sliders a model's declarations call for.
+sphere's and lit object's direct-lighting previews, and the sliders a model's declarations
+call for.
 """
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -19,8 +21,11 @@ from .lobes import LOG_DECADES, lobe_values
 from .samples import in_plane, in_plane_directions, is_table, samples_near
 
 __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_radius",
-           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve", "sphere_preview", "sphere_render", "to_rgba", "KEY_LIGHT",
-           "KEY_IRRADIANCE", "ENVIRONMENT", "CAMERA_DISTANCE", "CAMERA_FOV"]
+           "polar_curve", "measured_in_plane", "measured_near", "slice_image", "albedo_curve",
+           "sphere_preview", "sphere_render", "object_preview", "object_render", "lit_object",
+           "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
+           "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
+           "sky_map", "sky_lights", "SKY_SHAPE", "SKY_LIGHTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
 #: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
@@ -277,7 +282,7 @@ def _sphere_hits(size):
 
 
 def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
-                   environment=ENVIRONMENT, albedo=None):
+                   environment=ENVIRONMENT, albedo=None, lights=None):
     """A unit sphere of ``model`` under a directional key light and a uniform environment,
     direct lighting only (no interreflection; a sphere has none): the preview shown while a
     slider moves.
@@ -291,6 +296,9 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     explorer's albedo curve already holds, by default 24 angles at phi = 0 (exact for isotropic
     models up to the interpolation).
 
+    ``lights``, the directional lights of an environment map (:func:`sky_lights`), replace
+    the key light and the uniform environment when given.
+
     Returns
     -------
     ndarray, shape (size, size, C)
@@ -302,14 +310,52 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     if size < 2:
         raise InputError(f"sphere_preview: size {size} must be at least 2 pixels")
     normal, view, hit = _sphere_hits(size)
-    frame = frame_from_normal(normal)
+    if lights is not None:
+        radiance = _shade_lights(model, normal, view, lights)
+        out = np.full((size, size, radiance.shape[-1]), np.nan)
+        out[hit] = radiance
+        return out
     light = np.asarray(light, float) / np.linalg.norm(light)
+    radiance = _shade(model, normal, view, light, irradiance, environment, albedo)
+    out = np.full((size, size, radiance.shape[-1]), np.nan)
+    out[hit] = radiance
+    return out
+
+
+def _shade_lights(model, normal, view, lights, visible=None):
+    """Radiance towards ``view`` at points of ``normal`` (world, (m, 3)) lit by directional
+    ``lights`` ``(directions (k, 3), irradiance (k, C))``: the reflection equation's sum over
+    delta lights (Pharr et al., PBR 4th ed., eq. 4.14); ``visible`` (k, m) masks shadows."""
+    directions, irradiance = lights
+    frame = frame_from_normal(normal)
+    wo = to_local(view, frame)
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
+    wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
+    k, m = len(directions), len(normal)
+    # every light in every point's frame at once: (k, m, 3)
+    wi = np.stack([np.asarray(directions, float) @ axis.T for axis in frame], -1)
+    cos = np.maximum(wi[..., 2], 0.0)
+    if visible is not None:
+        cos = cos * visible
+    # only the pairs a light reaches: about half of them on a sphere
+    light, point = np.nonzero(cos > 0.0)
+    f = np.asarray(model.eval(wi[light, point], wo[point]), float)
+    irradiance = np.asarray(irradiance, float).reshape(k, -1)
+    terms = f.reshape(len(point), -1) * (cos[light, point][:, None] * irradiance[light])
+    return np.stack([np.bincount(point, terms[:, c], minlength=m)
+                     for c in range(terms.shape[1])], -1)
+
+
+def _shade(model, normal, view, light, irradiance, environment, albedo):
+    """Direct-lighting radiance towards ``view`` at surface points of ``normal`` (world,
+    (m, 3)): see :func:`sphere_preview`. ``irradiance`` may be per point (0 in shadow)."""
+    frame = frame_from_normal(normal)
     wi = to_local(np.broadcast_to(light, normal.shape), frame)
     wo = to_local(view, frame)
-    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the sphere
+    wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
     wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
     f = np.asarray(model.eval(wi, wo), float)
-    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[:, None]
+    radiance = f * (irradiance * np.maximum(wi[:, 2], 0.0))[..., None]
     if environment:
         if albedo is None:
             theta = np.degrees(np.arccos(np.linspace(1.0, 0.0, 24)))
@@ -319,16 +365,284 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
         a = a[::-1]
         env = np.stack([np.interp(wo[:, 2], cos_o, a[:, c]) for c in range(a.shape[1])], -1)
         radiance = radiance + environment * env
+    return radiance
+
+
+# -- lit object: a torus ----------------------------------------------------------------------
+
+#: The lit object beside the sphere: a ring torus of these radii about its own y axis (inside
+#: the unit sphere, so the sphere's camera frames it), turned this many degrees about x to
+#: show its hole and have the key light cast its shadow inside the ring; its mesh for the
+#: path tracer has this many segments around the ring and around the tube (smooth vertex
+#: normals).
+TORUS_RADII = (0.68, 0.3)
+TORUS_TILT = -60.0
+TORUS_SEGMENTS = (96, 48)
+#: Sphere-tracing steps of the preview and the distance that counts as on the surface.
+_MARCH_STEPS, _MARCH_EPS = 96, 1e-5
+
+
+def _torus_rotation():
+    """World from the torus's frame: a turn of TORUS_TILT degrees about x."""
+    c, s = math.cos(math.radians(TORUS_TILT)), math.sin(math.radians(TORUS_TILT))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _torus_distance(p):
+    """Signed distance to the torus of points ``p`` (m, 3) in its own frame (Hart 1996,
+    "Sphere tracing", the torus's distance |(rho - R, y)| - r)."""
+    big, small = TORUS_RADII
+    rho = np.hypot(p[:, 0], p[:, 2])
+    return np.hypot(rho - big, p[:, 1]) - small
+
+
+def _march(origin, direction, t0, t1):
+    """Sphere tracing (Hart 1996) of rays ``origin + t direction`` (torus frame) from ``t0``
+    to ``t1``: the hit distance per ray, NaN where it misses."""
+    t = np.array(t0, float)
+    hit = np.full(len(t), np.nan)
+    live = np.arange(len(t))
+    for _ in range(_MARCH_STEPS):
+        d = _torus_distance(origin[live] + t[live, None] * direction[live])
+        done = d < _MARCH_EPS
+        hit[live[done]] = t[live[done]]
+        t[live] += d
+        live = live[~done & (t[live] < t1[live])]
+        if not len(live):
+            break
+    return hit
+
+
+def _object_hits(size):
+    """Per pixel of the sphere's camera: the torus's normal where the ray hits it, the
+    direction towards the camera, the hit points (all world), and the hit mask."""
+    half = math.tan(math.radians(CAMERA_FOV) / 2)
+    s = (np.arange(size) + 0.5) / size * 2 - 1
+    x, y = np.meshgrid(s * half, -s * half)
+    d = np.stack([x, y, -np.ones_like(x)], -1).reshape(-1, 3)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    rot = _torus_rotation()
+    o = np.array([0.0, 0.0, CAMERA_DISTANCE]) @ rot  # to the torus's frame: rot^T v
+    dl = d @ rot
+    # march inside the bounding sphere of radius R + r only
+    b = dl @ o
+    disc = b * b - (o @ o - sum(TORUS_RADII) ** 2)
+    near = np.where(disc > 0, -b - np.sqrt(np.maximum(disc, 0)), np.inf)
+    far = np.where(disc > 0, -b + np.sqrt(np.maximum(disc, 0)), -np.inf)
+    t = np.full(len(d), np.nan)
+    inside = disc > 0
+    t[inside] = _march(np.broadcast_to(o, (inside.sum(), 3)), dl[inside], near[inside],
+                       far[inside])
+    hit = ~np.isnan(t)
+    p = o + t[hit, None] * dl[hit]
+    # the normal: from the nearest point of the tube's centre circle
+    rho = np.hypot(p[:, 0], p[:, 2])
+    centre = np.stack([TORUS_RADII[0] * p[:, 0] / rho, np.zeros(len(p)),
+                       TORUS_RADII[0] * p[:, 2] / rho], -1)
+    n = p - centre
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return n @ rot.T, -d[hit], p @ rot.T, hit.reshape(size, size)
+
+
+def _in_shadow(points, normals, light):
+    """Whether the torus hides the direction ``light`` from each world point (a march from
+    just off the surface)."""
+    rot = _torus_rotation()
+    origin = (points + 1e-3 * normals) @ rot
+    direction = np.broadcast_to(light @ rot, origin.shape)
+    return ~np.isnan(_march(origin, direction, np.zeros(len(origin)),
+                            np.full(len(origin), 2.0 * sum(TORUS_RADII))))
+
+
+@functools.lru_cache(maxsize=8)
+def _object_geometry(size, light):
+    """The torus's normals, view directions, key-light visibility and hit mask at ``size``:
+    the same for every model, so traced once (30-50 ms) and kept."""
+    normal, view, points, hit = _object_hits(size)
+    lit = ~_in_shadow(points, normal, np.array(light))
+    for a in (normal, view, lit, hit):
+        a.flags.writeable = False
+    return normal, view, lit, hit
+
+
+def object_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANCE,
+                   environment=ENVIRONMENT, albedo=None, lights=None):
+    """The lit object (a torus, :data:`TORUS_RADII`, turned :data:`TORUS_TILT` degrees about
+    x) of ``model`` under the sphere's key light and environment, direct lighting as
+    :func:`sphere_preview` with the key light's shadows (a torus shadows itself): found by
+    sphere tracing its distance function. The environment term does not see the torus hide
+    part of the sky from itself, nor light between its sides (the path tracer does).
+
+    Returns
+    -------
+    ndarray, shape (size, size, C)
+        Radiance, NaN where the camera ray misses the torus.
+    """
+    size = int(size)
+    if size < 2:
+        raise InputError(f"object_preview: size {size} must be at least 2 pixels")
+    if lights is not None:  # an environment map's lights, without their shadows
+        normal, view, _, hit = _object_geometry(size, tuple(KEY_LIGHT))
+        radiance = _shade_lights(model, normal, view, lights)
+        out = np.full((size, size, radiance.shape[-1]), np.nan)
+        out[hit] = radiance
+        return out
+    light = np.asarray(light, float) / np.linalg.norm(light)
+    normal, view, lit, hit = _object_geometry(size, tuple(light))
+    radiance = _shade(model, normal, view, light, irradiance * lit, environment, albedo)
     out = np.full((size, size, radiance.shape[-1]), np.nan)
     out[hit] = radiance
     return out
 
 
-def sphere_render(material, size=128, spp=64, seed=0):
+def torus_mesh(material=None, segments=TORUS_SEGMENTS):
+    """The lit object as a :class:`brdf.render.Mesh` for the path tracer: ``segments``
+    (around the ring, around the tube) quads in two triangles each, with the torus's exact
+    normals at the vertices."""
+    from ..render import Mesh
+    big, small = TORUS_RADII
+    nu, nv = segments
+    u = 2 * np.pi * np.arange(nu) / nu
+    v = 2 * np.pi * np.arange(nv) / nv
+    U, V = np.meshgrid(u, v, indexing="ij")
+    # the torus about y: (R + r cos v) (cos u, 0, sin u) + r sin v y
+    normal = np.stack([np.cos(V) * np.cos(U), np.sin(V), np.cos(V) * np.sin(U)], -1)
+    ring = np.stack([np.cos(U), np.zeros_like(U), np.sin(U)], -1)
+    points = big * ring + small * normal
+    rot = _torus_rotation()
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a, b = i * nv + j, ((i + 1) % nu) * nv + j
+    c, d = ((i + 1) % nu) * nv + (j + 1) % nv, i * nv + (j + 1) % nv
+    # counter-clockwise seen from outside (the normal's side)
+    faces = np.concatenate([np.stack([a, d, c], -1).reshape(-1, 3),
+                            np.stack([a, c, b], -1).reshape(-1, 3)])
+    return Mesh(points.reshape(-1, 3) @ rot.T, faces, material,
+                normals=normal.reshape(-1, 3) @ rot.T)
+
+
+def lit_object(material, environment=ENVIRONMENT):
+    """The path tracer's scene of the lit object: the torus of :func:`torus_mesh` under the
+    camera, key light and environment of ``brdf.render.builtin("sphere")``."""
+    from ..render import Camera, DirectionalLight, Environment, Scene
+    camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
+                    fov=CAMERA_FOV)
+    key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
+    return Scene(camera, [torus_mesh(material)], [key],
+                 Environment(environment) if environment else None)
+
+
+def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, lighting="key",
+                  **options):
+    """The lit object path traced (:func:`lit_object`; under :func:`sky_map` alone when
+    ``lighting="sky"``), NaN off the torus as :func:`object_preview` (its mask: the mesh's
+    silhouette differs by under a pixel). ``options`` go to :func:`brdf.render.render`
+    (``max_depth=2``: direct light only)."""
+    from .. import render
+    scene = (lit_object(material, environment) if lighting == "key" else
+             _scene(torus_mesh(material), material, lighting))
+    image = np.array(render.render(scene, spp=int(spp),
+                                   size=(int(size), int(size)), seed=seed, progress=False,
+                                   **options).image, dtype=float)
+    image[~_object_hits(int(size))[3]] = np.nan
+    return image
+
+
+# -- environment map --------------------------------------------------------------------------
+
+#: Size of the bundled sky map (rows, columns) and the directional lights its preview uses.
+SKY_SHAPE, SKY_LIGHTS = (64, 128), 64
+#: Where the sky map's sun is (towards it) and its radiance over a cone of SUN_WIDTH degrees
+#: (a smooth falloff), on a blue sky over a dark ground.
+SUN = np.array([-0.6, 0.55, 0.58]) / np.linalg.norm([-0.6, 0.55, 0.58])
+SUN_RADIANCE, SUN_WIDTH = (30.0, 26.0, 20.0), 6.0
+
+
+def _map_directions(shape):
+    """World directions of an equirectangular map's pixel centres in Mitsuba 3's envmap
+    layout (+y up; u = atan2(x, -z) / 2 pi, v = acos(y) / pi, row 0 at the top) and each
+    pixel's solid angle (2 pi^2 sin(theta) / (h w), PBR 3rd ed. eq. 14.9)."""
+    h, w = shape
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    return d, 2 * np.pi ** 2 * np.sin(T) / (h * w)
+
+
+def sky_map(shape=SKY_SHAPE):
+    """The bundled environment map: a sun (:data:`SUN`) in a blue sky graded to the horizon
+    over a dark ground, radiance ``(h, w, 3)`` in Mitsuba 3's envmap layout (the path tracer's
+    :class:`brdf.render.Environment` takes it as ``map``)."""
+    d, _ = _map_directions(shape)
+    up = d[..., 1:2]
+    sky = np.array([0.25, 0.42, 0.8]) * (0.35 + 0.65 * np.clip(up, 0, 1)) \
+        + np.array([0.5, 0.5, 0.45]) * np.exp(-8.0 * abs(up))  # a bright haze at the horizon
+    ground = np.broadcast_to(np.array([0.12, 0.1, 0.08]), sky.shape)
+    radiance = np.where(up > 0, sky, ground)
+    cone = np.degrees(np.arccos(np.clip(d @ SUN, -1, 1)))[..., None]
+    return radiance + np.array(SUN_RADIANCE) * np.exp(-0.5 * (cone / SUN_WIDTH) ** 2)
+
+
+@functools.lru_cache(maxsize=4)
+def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
+    """The sky map as ``count`` (a power of 2) directional lights for the previews: Debevec's
+    median cut (2005, "A Median Cut Algorithm for Light Probe Sampling"): regions of the map
+    split in two of equal energy (luminance times solid angle) across their longer side
+    (the width scaled by sin(theta)) until there are ``count``; each becomes a light at its
+    energy centroid carrying the region's irradiance (sum of radiance times solid angle).
+
+    Returns
+    -------
+    directions : ndarray (count, 3)
+    irradiance : ndarray (count, 3)
+    """
+    radiance = sky_map(shape)
+    d, omega = _map_directions(shape)
+    power = radiance * omega[..., None]
+    energy = power @ np.array([0.2126, 0.7152, 0.0722])  # luminance, ITU-R BT.709
+    regions = [(0, shape[0], 0, shape[1])]
+    while len(regions) < count:
+        split = []
+        for r0, r1, c0, c1 in regions:
+            rows = np.arange(r0, r1)
+            width = (c1 - c0) * np.sin(np.pi * (rows.mean() + 0.5) / shape[0])
+            e = energy[r0:r1, c0:c1]
+            if (r1 - r0) >= width and r1 - r0 > 1 or c1 - c0 == 1:
+                cut = r0 + 1 + int(np.searchsorted(np.cumsum(e.sum(1)), e.sum() / 2)
+                                   .clip(0, r1 - r0 - 2))
+                split += [(r0, cut, c0, c1), (cut, r1, c0, c1)]
+            else:
+                cut = c0 + 1 + int(np.searchsorted(np.cumsum(e.sum(0)), e.sum() / 2)
+                                   .clip(0, c1 - c0 - 2))
+                split += [(r0, r1, c0, cut), (r0, r1, cut, c1)]
+        regions = split
+    directions, irradiance = [], []
+    for r0, r1, c0, c1 in regions:
+        e = energy[r0:r1, c0:c1]
+        centre = (d[r0:r1, c0:c1] * e[..., None]).sum((0, 1))
+        directions.append(centre / np.linalg.norm(centre))
+        irradiance.append(power[r0:r1, c0:c1].sum((0, 1)))
+    return np.array(directions), np.array(irradiance)
+
+
+def _scene(shape, material, lighting):
+    """The previews' scene for the path tracer: ``shape`` under the key light and uniform
+    environment (``lighting == "key"``) or under :func:`sky_map` alone (``"sky"``)."""
+    from ..render import Camera, DirectionalLight, Environment, Scene
+    camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
+                    fov=CAMERA_FOV)
+    if lighting == "sky":
+        return Scene(camera, [shape], [], Environment(1.0, map=sky_map()))
+    key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
+    return Scene(camera, [shape], [key], Environment(ENVIRONMENT))
+
+
+def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options):
     """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
     ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
     the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
-    model or a measured table.
+    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead;
+    ``options`` go to :func:`brdf.render.render`.
 
     Returns
     -------
@@ -336,9 +650,10 @@ def sphere_render(material, size=128, spp=64, seed=0):
         Radiance, NaN where the camera ray misses the sphere (as the preview).
     """
     from .. import render
-    scene = render.builtin("sphere", material)
+    scene = (render.builtin("sphere", material) if lighting == "key" else
+             _scene(render.Sphere((0, 0, 0), 1.0, material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
-                                   progress=False).image, dtype=float)
+                                   progress=False, **options).image, dtype=float)
     image[~_sphere_hits(int(size))[2]] = np.nan
     return image
 

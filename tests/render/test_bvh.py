@@ -1,6 +1,7 @@
 """The BVH builder: the tree's invariants (a partition of the primitives, boxes that hold what
-is under them, equal-count splits along the widest centroid axis, small leaves) and closest and any hits
-through it (the SIMD leaf test) against a plain numpy test of every primitive."""
+is under them, splits between sorted centroids, small leaves), the root's split against a plain
+SAH costing of the same candidates, and closest and any hits through it (the SIMD leaf test)
+against a plain numpy test of every primitive."""
 
 import math
 
@@ -9,7 +10,7 @@ import pytest
 
 from brdf import render
 from brdf.render import _intersect as X
-from brdf.render.bvh import LEAF_SIZE, block_leaves, build_bvh
+from brdf.render.bvh import CANDIDATES, LEAF_SIZE, TRAVERSAL, block_leaves, build_bvh
 
 
 def _boxes(n, seed, ties=False):
@@ -39,7 +40,7 @@ def _under(child, node):
 
 @pytest.mark.parametrize("n, ties", [(1, False), (3, False), (5, False), (200, False),
                                      (2000, False), (2000, True)])
-def test_the_tree_is_a_median_split_partition_with_tight_boxes(n, ties):
+def test_the_tree_is_a_partition_split_between_sorted_centroids_with_tight_boxes(n, ties):
     lo, hi = _boxes(n, n, ties)
     box, child, order = build_bvh(lo, hi)
     assert sorted(order) == list(range(n))
@@ -56,10 +57,43 @@ def test_the_tree_is_a_median_split_partition_with_tight_boxes(n, ties):
             assert len(prims) <= LEAF_SIZE or extent.max() == 0.0
             continue
         a, b = (order[_under(child, c)] for c in child[node])
-        assert len(a) == len(prims) // 2 and len(b) == len(prims) - len(prims) // 2
-        axis = int(np.argmax(extent))
-        assert cen[a, axis].max() <= cen[b, axis].min()
+        assert len(a) and len(b)
+        # some axis puts every left centroid at or before every right one
+        assert any(cen[a, axis].max() <= cen[b, axis].min() for axis in range(3))
     assert reached == set(range(len(box)))          # no orphan nodes
+
+
+def _half_area(lo, hi):
+    e = hi - lo
+    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+
+
+@pytest.mark.parametrize("n", [20, 200, 5000])
+def test_the_root_split_is_the_cheapest_candidate(n):
+    """The root's children are the split of least SAH cost (left count times left half area
+    plus right count times right half area) among the candidates, the first
+    floor(n m / k) primitives in centroid order along an axis (k = min(n, CANDIDATES)),
+    costed here one by one."""
+    lo, hi = _boxes(n, n)
+    box, child, order = build_bvh(lo, hi)
+    cen = 0.5 * (lo + hi)
+    k = min(n, CANDIDATES)
+    costs = {}
+    for axis in range(3):
+        by = np.argsort(cen[:, axis], kind="stable")
+        for m in range(1, k):
+            c = n * m // k
+            left, right = by[:c], by[c:]
+            costs[axis, m] = (c * _half_area(lo[left].min(0), hi[left].max(0))
+                              + (n - c) * _half_area(lo[right].min(0), hi[right].max(0)))
+    best = min(costs.values())
+    if n <= LEAF_SIZE and TRAVERSAL + best / _half_area(lo.min(0), hi.max(0)) >= n:
+        assert child[0, 0] < 0
+        return
+    a = set(order[_under(child, child[0, 0])])
+    want = [set(np.argsort(cen[:, axis], kind="stable")[:n * m // k])
+            for (axis, m), c in costs.items() if c <= best * (1 + 1e-9)]
+    assert a in want
 
 
 def test_a_million_boxes_build_in_seconds():
@@ -67,8 +101,8 @@ def test_a_million_boxes_build_in_seconds():
     lo, hi = _boxes(1_000_000, 0)
     t = time.perf_counter()
     box, child, order = build_bvh(lo, hi)
-    assert time.perf_counter() - t < 30.0            # about 2 s here, as the numba builder was
-    assert max(d for _, d in _walk(child)) <= math.ceil(math.log2(1_000_000 / LEAF_SIZE)) + 1
+    assert time.perf_counter() - t < 30.0            # about 10 s here on a loaded host
+    assert max(d for _, d in _walk(child)) < X.STACK
 
 
 @pytest.mark.parametrize("n, ties", [(1, False), (17, False), (2000, False), (2000, True)])
@@ -186,3 +220,15 @@ def test_packets_find_the_hits_of_every_primitive(spread):
                 np.testing.assert_allclose(quad[prim[i, 1], 0] + a * quad[prim[i, 1], 1]
                                            + b * quad[prim[i, 1], 2], hit, atol=1e-12)
     assert hits > 150
+
+
+def test_a_scene_compiled_again_reuses_its_tree_and_a_moved_one_does_not():
+    """The same boxes give the same tree (kept, not built again); a moved shape gets its own,
+    whose root box holds it where it now is."""
+    def scene(x):
+        return render.Scene(shapes=[render.Sphere((x, 0.0, 0.0), 0.5),
+                                    render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))])
+    a, b, moved = scene(0.3).compile().geo, scene(0.3).compile().geo, scene(7.0).compile().geo
+    assert a.box is b.box and a.child is b.child and a.slots is b.slots
+    assert moved.box is not a.box
+    assert moved.box[0, 1, 0] >= 7.5 and a.box[0, 1, 0] < 1.0

@@ -266,3 +266,38 @@ def test_bright_region_light_and_bsdf_sampling_agree(tmp_path):
         assert abs(da) < 4 * se, (a, b, da, se)
     assert np.mean(np.abs(_z(runs["mis"], runs["light"]))[on] < 4) > 0.95
     assert runs["light"].variance[on].mean() < 0.1 * runs["bsdf"].variance[on].mean()
+
+
+def test_map_lookup_finds_libms_pixel_and_the_bisections_bin(tmp_path):
+    """The lookup's polynomial angles, settled against the pixels' edges, give the pixel of
+    libm's atan2 and acos (Mitsuba's layout) wherever rounding cannot take either side, and
+    sin(theta) to rounding; the guided inversion of the map's CDFs (zero rows and pixels
+    among them) finds the bin of a bisection (np.searchsorted) for any u."""
+    from brdf.render import _lights as L
+    rng = np.random.default_rng(5)
+    img = rng.random((16, 32, 3)) * (rng.random((16, 32, 1)) < 0.7)
+    img[3] = 0.0
+    lights = _env_scene(render.Environment(1.0, _write_map(tmp_path / "m.exr", img))
+                        ).compile().lights
+    h, w = img.shape[:2]
+    d = rng.normal(size=(4000, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:4] = [[0, 1, 0], [0, -1, 0], [1, 0, 0], [0, 0, -1]]     # poles and column edges
+    u = (np.arctan2(d[:, 0], -d[:, 2]) / (2 * np.pi)) % 1.0
+    v = np.arccos(d[:, 1]) / np.pi
+    clear = (np.abs(u * w - np.round(u * w)) > 1e-9) & (np.abs(v * h - np.round(v * h)) > 1e-9)
+    assert clear.sum() > 3900
+    for k in range(len(d)):
+        i, j, s = L._env_pixel(lights, *d[k])
+        assert 0 <= i < h and 0 <= j < w
+        assert s == pytest.approx(np.sin(v[k] * np.pi), abs=1e-12)
+        if clear[k]:
+            assert (i, j) == (min(int(v[k] * h), h - 1), min(int(u[k] * w), w - 1)), k
+    for cdf, guide in [(lights.rows, lights.row_guide)] + list(zip(lights.cols,
+                                                                    lights.col_guide)):
+        n = len(cdf) - 1
+        xs = np.concatenate([rng.random(50), cdf[:-1], np.nextafter(cdf[1:-1], 0)])
+        for x in xs[xs < 1.0]:                  # a CDF's sums may round past 1 by an ulp
+            i, frac = L._invert(cdf, guide, x)
+            assert i == min(np.searchsorted(cdf, x, side="right") - 1, n - 1), (x, cdf)
+            assert cdf[i] <= x < cdf[i + 1] and 0.0 <= frac <= 1.0 + 1e-12

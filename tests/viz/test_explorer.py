@@ -230,6 +230,92 @@ def test_path_traced_sphere_agrees_with_the_preview():
     assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.05
 
 
+def test_torus_mesh_is_closed_and_its_normals_face_out():
+    mesh = view_data.torus_mesh(segments=(24, 12))
+    faces = mesh.faces
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
+                    axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert set(counts) == {2}  # a closed surface
+    a, b, c = (mesh.vertices[faces[:, k]] for k in range(3))
+    facet = np.cross(b - a, c - a)
+    assert (np.einsum("ij,ij->i", facet, mesh.normals[faces].mean(axis=1)) > 0).all()
+    # every vertex on the torus (R - sqrt(x^2 + z^2))^2 + y^2 = r^2 in its own frame
+    tilt = math.radians(view_data.TORUS_TILT)
+    rot = np.array([[1, 0, 0], [0, math.cos(tilt), -math.sin(tilt)],
+                    [0, math.sin(tilt), math.cos(tilt)]])
+    local = mesh.vertices @ rot
+    big, small = view_data.TORUS_RADII
+    np.testing.assert_allclose(np.hypot(np.hypot(local[:, 0], local[:, 2]) - big,
+                                        local[:, 1]), small, rtol=1e-12)
+
+
+def test_lit_object_preview_agrees_with_the_path_tracer():
+    # direct light only (no environment, paths of two segments): the preview's shading and
+    # shadows against the renderer's estimate for the mesh of the same torus
+    model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2)")
+    preview = view_data.object_preview(model, 48, environment=0.0)
+    traced = view_data.object_render(model, 48, spp=256, seed=1, environment=0.0, max_depth=2)
+    hit = ~np.isnan(preview[..., 0])
+    assert 0.3 < hit.mean() < 0.7
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    ratio = traced[inner].mean(axis=0) / preview[inner].mean(axis=0)
+    np.testing.assert_allclose(ratio, 1.0, atol=0.02)
+    lit = preview[inner][:, 0] > 0.02
+    assert np.median(abs(traced[inner][lit] / preview[inner][lit] - 1)) < 0.03
+    # the key light's shadow: a part of the torus is dark in both
+    dark = preview[inner][:, 0] == 0.0
+    assert dark.sum() > 20 and (traced[inner][dark][:, 0] < 0.02).mean() > 0.8
+
+
+def test_sky_lights_carry_the_maps_irradiance():
+    directions, irradiance = view_data.sky_lights(16)
+    assert directions.shape == irradiance.shape == (16, 3)
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, rtol=1e-12)
+    # the map's irradiance, sum of radiance times pixel solid angle 2 pi^2 sin(theta) / (h w)
+    # (PBR 3rd ed. eq. 14.9), computed here over the pixel grid
+    sky = view_data.sky_map()
+    h, w = sky.shape[:2]
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    total = (sky * (2 * np.pi ** 2 * np.sin(theta) / (h * w))[:, None, None]).sum((0, 1))
+    np.testing.assert_allclose(irradiance.sum(0), total, rtol=1e-12)
+    # regions of equal energy (Debevec 2005): the lights crowd into the sun as its share of
+    # the map's luminance says, give or take a region's worth on each side
+    directions, irradiance = view_data.sky_lights(64)
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    luminance = (sky @ [0.2126, 0.7152, 0.0722]) * np.sin(T)
+    near = d @ view_data.SUN > math.cos(math.radians(15.0))
+    share = luminance[near].sum() / luminance.sum()
+    count = (directions @ view_data.SUN > math.cos(math.radians(15.0))).sum()
+    assert 0.3 < share and abs(count - 64 * share) <= 4, (count, share)
+
+
+@pytest.mark.parametrize("spec", ["lambert(albedo=[0.5,0.4,0.3])",
+                                  "lambert(albedo=0.5) + ggx(alpha=0.3)"])
+def test_sky_preview_agrees_with_the_path_tracer_under_the_map(spec):
+    # the renderer reads the map through its own envmap lookup: a preview built on another
+    # orientation of the map would light the sphere from elsewhere
+    model = brdf.parse(spec)
+    preview = view_data.sphere_preview(model, 48, lights=view_data.sky_lights())
+    traced = view_data.sphere_render(model, 48, spp=256, seed=1, lighting="sky", max_depth=2)
+    hit = ~np.isnan(preview[..., 0])
+    inner = hit.copy()
+    for axis in (0, 1):
+        for shift in (1, -1):
+            inner &= np.roll(hit, shift, axis)
+    np.testing.assert_allclose(traced[inner].mean(0) / preview[inner].mean(0), 1.0, atol=0.02)
+    # 64 lights stand for a smooth map: a few per cent per pixel on a rough material
+    assert np.median(abs(traced[inner] / preview[inner] - 1)) < 0.06
+    mirror = view_data.sphere_preview(model, 48, lights=(-view_data.sky_lights()[0],
+                                                         view_data.sky_lights()[1]))
+    assert np.median(abs(traced[inner] / np.maximum(mirror[inner], 1e-9) - 1)) > 0.3
+
+
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
     image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
     pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
@@ -248,8 +334,14 @@ def test_a_fit_in_the_background_adds_the_fitted_model_and_exports_it():
     from brdf.viz.explorer import Explorer
     table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
     app = Explorer([str(table)])
+    shown, texts = [], []
+    app.materials[0].fit_progress.param.watch(lambda e: shown.append(e.new), "value")
+    app.materials[0].fit_status.param.watch(lambda e: texts.append(e.new), "object")
     app.start_fit(0, "lambert + beckmann").join(120)
     assert len(app.materials) == 2 and not app.error.visible
+    # the percentage of the fit's planned runs, counting up to 100 before it ends
+    assert shown == sorted(shown) and 0 <= shown[0] < 100 == shown[-1] and len(set(shown)) >= 2
+    assert "fitting `lambert + beckmann`: 100% (" in texts[-2]
     # the same fit as the library's, run here on the same data and options
     expected = brdf.fit(brdf.read(table), "lambert + beckmann", seed=0, progress=False)
     assert app.materials[1].model == expected.model
@@ -293,10 +385,20 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     # a full update is followed by the path-traced sphere, a draft is not
     app.refine_thread.join(120)
     assert app.sphere.title.text == "lit sphere (path traced, 64 spp)"
+    assert app.object_view.title.text == "lit object (path traced, 64 spp)"
     preview = app.sphere_source.data["image"]
+    lit_object = app.object_source.data["image"][0]
     app.set_parameter(0, "ggx.alpha", 0.4, draft=True)
     assert app.sphere.title.text == "lit sphere (direct light)"
+    assert app.object_view.title.text == "lit object (direct light)"
     assert app.sphere_source.data["image"] is not preview
+    # the object's draft: the preview of the new model, at the draft's size
+    from brdf.viz.explorer import DRAFT_ALBEDO_THETA, DRAFT_SPHERE_SIZE
+    np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
+        view_data.object_preview(app.materials[0].model, DRAFT_SPHERE_SIZE,
+                                 albedo=(DRAFT_ALBEDO_THETA, view_data.albedo_curve(
+                                     app.materials[0].model, DRAFT_ALBEDO_THETA)))))
+    assert lit_object.shape != app.object_source.data["image"][0].shape
     assert not np.allclose(before, after)
     assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
     # a tap in the polar plot at 45 degrees from the normal sets theta_i, slider too
@@ -318,6 +420,139 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert "samples" in app.lobe.lobes[2] and "samples" not in app.lobe.lobes[0]
     app.remove(1)
     assert len(app.materials) == 2 and len(app.cards) == 2
+
+
+def test_uploads_add_a_measured_file_or_a_fit_report_and_refuse_a_bad_file(tmp_path):
+    from brdf.viz.explorer import Explorer
+    app = Explorer(["ggx(alpha=0.2)"])
+    app.refine = False
+    table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+    data = table.read_bytes()
+    # what the page's file input sends: the file's name and bytes
+    app.upload_input.param.update(filename="paper_white_rgb.bsdf", value=data)
+    assert len(app.materials) == 2 and not app.error.visible
+    m = app.materials[1]
+    assert m.label == "paper_white_rgb.bsdf" and m.card.title == "paper_white_rgb.bsdf"
+    # the same samples as the library reads from the original file
+    expected = brdf.read(table)
+    np.testing.assert_array_equal(m.model.values, expected.values)
+    assert len(m.samples_source.data["x"]) > 10
+    # the same file again: a second material (the input forgot the first)
+    app.upload_input.param.update(filename="paper_white_rgb.bsdf", value=data)
+    assert len(app.materials) == 3 and app.materials[2].label == "paper_white_rgb.bsdf"
+    app.remove(2)
+    # a fit report: its model
+    report = tmp_path / "fit.json"
+    brdf.fit(brdf.measure("lambert(albedo=0.4)", "inplane:15"), "lambert", starts=1,
+             progress=False).save(report)
+    assert app.upload("fit.json", report.read_bytes()) is True
+    assert app.materials[2].model == brdf.load_report(report).model
+    # a truncated file and a file of no known format: the library's one line, naming the
+    # file as uploaded (not the server's folder), nothing added, the page still answers
+    for name, payload in (("paper_white_rgb.bsdf", data[:len(data) // 3]),
+                          ("notes.txt", b"hello"), ("fit.json", b"{")):
+        assert app.upload(name, payload) is False
+        message = app.error.object
+        assert message.startswith(name) and "\n" not in message and "brdf-explore-" not in message
+        assert len(app.materials) == 3
+    # the message is the library's own for that file, with the name as uploaded
+    truncated = tmp_path / "x.bsdf"
+    truncated.write_bytes(data[:len(data) // 3])
+    with pytest.raises(brdf.errors.FormatError) as refused:
+        brdf.read(truncated)
+    assert app.upload("x.bsdf", truncated.read_bytes()) is False
+    assert app.error.object == " ".join(str(refused.value).split()).replace(
+        str(truncated), "x.bsdf")
+    assert app.add_from_text("beckmann(alpha=0.3)") and not app.error.visible
+
+
+def test_the_previews_switch_to_the_sky_map_and_back():
+    from brdf.viz.explorer import DRAFT_SKY_LIGHTS, SKY_LIGHTS, SPHERE_SIZE, Explorer
+    app = Explorer([SPEC])
+    key = app.sphere_source.data["image"][0]
+    app.refine_thread.join(120)
+    app.lighting_select.value = "sky map"  # as the page's button does
+    assert app.lighting == "sky"
+    model = app.materials[0].model
+    lights = view_data.sky_lights(SKY_LIGHTS)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_preview(model, SPHERE_SIZE, lights=lights)))
+    np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
+        view_data.object_preview(model, SPHERE_SIZE, lights=lights)))
+    # refined by the path tracer under the same map: close to the preview on average
+    app.refine_thread.join(120)
+    assert app.object_view.title.text == "lit object (path traced, 64 spp)"
+    traced = view_data.sphere_render(model, SPHERE_SIZE, 64, lighting="sky")
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(traced))
+    app.set_parameter(0, "ggx.alpha", 0.3, draft=True)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_preview(app.materials[0].model, 64,
+                                 lights=view_data.sky_lights(DRAFT_SKY_LIGHTS))))
+    app.set_lighting("key")
+    assert app.lighting_select.value == "key light + environment"
+    app.set_parameter(0, "ggx.alpha", 0.2)
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], key)
+    with pytest.raises(InputError, match="lighting 'sun'"):
+        app.set_lighting("sun")
+
+
+def test_the_slice_shows_the_material_chosen_in_its_list():
+    from brdf.viz.explorer import FIRST_SHOWN, Explorer
+    app = Explorer(["ggx(alpha=0.1)", SPEC])
+    app.refine = False
+
+    def shown_slice(model):
+        expected = view_data.slice_image(model, app.phi_d, 90).mean(axis=-1)
+        got = app.slice_source.data["image"][0]
+        return np.allclose(np.where(expected > 0, expected, np.nan), got, equal_nan=True,
+                           rtol=1e-12)
+
+    assert list(app.slice_select.options) == [FIRST_SHOWN, "1: ggx", "2: lambert + ggx"]
+    assert shown_slice(app.materials[0].model) and "material 1" in app.slice.title.text
+    app.slice_select.value = "2: lambert + ggx"
+    assert shown_slice(app.materials[1].model) and "material 2" in app.slice.title.text
+    # it follows that material's sliders, and stays when it is hidden
+    app.set_parameter(1, "ggx.alpha", 0.5)
+    assert shown_slice(app.materials[1].model)
+    app._visibility(app.materials[1], visible=False)
+    assert shown_slice(app.materials[1].model)
+    # a third material joins the list; removing the chosen one falls back to the first shown
+    app.add("beckmann(alpha=0.3)")
+    assert list(app.slice_select.options)[-1] == "3: beckmann"
+    app.remove(1)
+    assert app.slice_select.value == FIRST_SHOWN
+    assert list(app.slice_select.options) == [FIRST_SHOWN, "1: ggx", "2: beckmann"]
+    assert shown_slice(app.materials[0].model) and "material 1" in app.slice.title.text
+
+
+def test_dragging_the_incident_arrow_sets_both_sliders_and_every_view():
+    from brdf.viz.explorer import Explorer
+    from brdf.viz.samples import incidence
+    app = Explorer([SPEC])
+    app.refine = False
+    sphere = app.sphere_source.data["image"][0].copy()
+    updates = app._refines
+    # what the page sends while the arrow moves: a draft, one update for both angles
+    app.lobe.drag = [60.2, 44.8, 0, 1]
+    assert (app.theta_i, app.phi_i) == (60.0, 45.0) == (app.theta_slider.value,
+                                                         app.phi_slider.value)
+    assert app._refines == updates + 1
+    np.testing.assert_allclose(app.lobe.incident, 1.2 * incidence(60.0, 45.0), atol=1e-12)
+    assert app.albedo_marker.location == 60.0
+    assert not np.array_equal(app.sphere_source.data["image"][0], sphere)
+    # the in-plane curve is the one of the new incidence
+    _, f = view_data.polar_curve(app.materials[0].model, incidence(60.0, 45.0), cosine=True)
+    r = f.mean(axis=-1) / f.mean(axis=-1).max()
+    got = app.materials[0].polar_source.data
+    np.testing.assert_allclose(np.hypot(got["x"], got["y"]), r, rtol=1e-9)
+    # let go: the full update; the same values sent again still update (a new serial)
+    app.refine = True
+    app.lobe.drag = [60.2, 44.8, 1, 2]
+    assert app._refines == updates + 2 and app.refine_thread is not None
+    app.refine_thread.join(120)
+    # phi wraps, theta stops above the horizon
+    app.lobe.drag = [95.0, 359.7, 1, 3]
+    assert (app.theta_i, app.phi_i) == (89.0, 0.0)
 
 
 # -- in a headless browser --------------------------------------------------------------------
@@ -374,8 +609,29 @@ def _sphere(driver):
         "'spheres'); return s && s.data.image.length ? Array.from(s.data.image[0]) : null")
 
 
+def _object(driver):
+    return driver.execute_script(
+        "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+        "'objects'); return s && s.data.image.length ? Array.from(s.data.image[0]) : null")
+
+
 def _canvas(driver, canvas):
     return driver.execute_script("return arguments[0].toDataURL()", canvas)
+
+
+def _lobe_target(lobe, theta, phi):
+    """Canvas pixels where the 3-D lobe draws the incident arrow's tip for (theta, phi)
+    degrees, and its depth (negative: in front): the view's turn (yaw about the normal, then pitch about the screen's x axis) and
+    its projection, written out here from the view's description."""
+    yaw, pitch, zoom = (float(v) for v in lobe.get_attribute("data-view").split(","))
+    t, f = math.radians(theta), math.radians(phi)
+    p = 1.2 * np.array([math.sin(t) * math.cos(f), math.sin(t) * math.sin(f), math.cos(t)])
+    x = math.cos(yaw) * p[0] - math.sin(yaw) * p[1]
+    y = math.sin(yaw) * p[0] + math.cos(yaw) * p[1]
+    depth, up = math.cos(pitch) * y - math.sin(pitch) * p[2], math.sin(pitch) * y \
+        + math.cos(pitch) * p[2]
+    scale = 0.42 * 420 * zoom
+    return 210 + scale * x, 0.62 * 420 - scale * up, depth
 
 
 def _text(driver):
@@ -392,7 +648,7 @@ return parts.join(' ');""")
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
-def test_page_in_a_headless_browser():
+def test_page_in_a_headless_browser(tmp_path):
     from brdf.viz.explorer import explore
     from selenium.webdriver import ActionChains, Keys
     driver = _browser()
@@ -405,6 +661,7 @@ def test_page_in_a_headless_browser():
                                                     "Bokeh.documents.length > 0") and
                       _polar(driver))
         sphere = _wait(lambda: _sphere(driver))
+        lit_object = _wait(lambda: _object(driver))
         app, = server.explorers
         lobe = _wait(lambda: driver.execute_script(_DEEP, "canvas.brdf-lobe"))[0]
         # the mesh's triangles, less those the cosine folds to a point at the horizon
@@ -429,6 +686,7 @@ def test_page_in_a_headless_browser():
             _polar(driver)))
         assert not np.allclose(second, first)
         _wait(lambda: _sphere(driver) != sphere)
+        _wait(lambda: _object(driver) != lit_object)
         _wait(lambda: _canvas(driver, lobe) != turned)
         assert app.materials[0].model.params["ggx.alpha"] < 0.2
         # a wrong spec typed into the page: the library's one line, and the server lives on
@@ -440,6 +698,14 @@ def test_page_in_a_headless_browser():
         box.send_keys("beckmann(alpha=0.3)", Keys.ENTER)
         _wait(lambda: driver.execute_script(_MODEL, "polar-1"))
         assert len(app.materials) == 2
+        # the slice of the second material, chosen in the page's list
+        from selenium.webdriver.support.select import Select
+        choice = _wait(lambda: [e for e in driver.execute_script(_DEEP, "select")
+                                if "2: beckmann" in e.text])[0]
+        Select(choice).select_by_visible_text("2: beckmann")
+        _wait(lambda: "material 2" in driver.execute_script(
+            _MODEL.replace("return ", "const m = ") + "; return m.title.text", "slice"))
+        assert app.slice_material() is app.materials[1]
         # a measured file typed in: its samples drawn in the page
         box.clear()
         box.send_keys(str(ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"), Keys.ENTER)
@@ -451,10 +717,30 @@ def test_page_in_a_headless_browser():
         button = _wait(lambda: [b for b in driver.execute_script(_DEEP, "button")
                                 if b.text.strip() == "fit"])[0]
         button.click()
+        # the page's progress bar shows the fit's percentage (no value: indeterminate)
+        percent = _wait(lambda: [float(e.get_dom_attribute("value"))
+                                 for e in driver.execute_script(_DEEP, "progress")
+                                 if e.get_dom_attribute("value") not in (None, "", "0")],
+                        timeout=60)
+        assert 0 < percent[0] <= 100
         _wait(lambda: "fitted in" in _text(driver), timeout=120)
         _wait(lambda: driver.execute_script(_MODEL, "polar-3"))
         assert len(app.materials) == 4 and app.materials[3].fit.converged
         assert str(app.materials[3].model).startswith("lambert(albedo=[")
+        # upload files through the page's file input: a truncated one is refused with the
+        # library's line naming it, then a good one joins with its samples
+        table = ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf"
+        bad = tmp_path / "cut.bsdf"
+        bad.write_bytes(table.read_bytes()[:5000])
+        upload = driver.execute_script(_DEEP, "input[type=file]")[0]
+        upload.send_keys(str(bad))
+        _wait(lambda: "cut.bsdf" in _text(driver) and app.error.visible)
+        assert app.error.object.startswith("cut.bsdf") and len(app.materials) == 4
+        upload.send_keys(str(table))
+        _wait(lambda: driver.execute_script(
+            "const s = [...Bokeh.documents[0]._all_models.values()].find(m => m.name === "
+            "'samples-4'); return s && s.data.x.length > 10"))
+        assert app.materials[4].label == "paper_white_rgb.bsdf" and not app.error.visible
         # dragging in the polar plot moves the incident direction (last: the
         # measured samples above were taken at theta_i = 30)
         plot = _wait(lambda: [c for c in driver.execute_script(_DEEP, "canvas")
@@ -464,6 +750,31 @@ def test_page_in_a_headless_browser():
         ActionChains(driver).move_to_element_with_offset(plot, -60, -40).click_and_hold() \
             .move_by_offset(-40, 0).release().perform()
         _wait(lambda: app.theta_i != 30.0)
+        # drag the incident arrow's tip on the 3-D lobe to where the page draws the direction
+        # theta 60 at the phi (of four) nearest the viewer, projected here from the page's
+        # view angles independently of its own inverse: both sliders and the views follow
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", lobe)
+        phi = min((45.0, 135.0, 225.0, 315.0), key=lambda p: _lobe_target(lobe, 60.0, p)[2])
+        target = _lobe_target(lobe, 60.0, phi)
+        # the arrow drawn where the server's incidence projects (once the page has redrawn)
+        tip = _wait(lambda: (lambda t: t if np.allclose(
+            t, _lobe_target(lobe, app.theta_i, app.phi_i)[:2], atol=1.0) else None)(
+            [float(v) for v in lobe.get_attribute("data-incident-tip").split(",")]))
+        size = lobe.size
+        ActionChains(driver).move_to_element_with_offset(
+            lobe, tip[0] - size["width"] / 2, tip[1] - size["height"] / 2).click_and_hold() \
+            .move_by_offset((target[0] - tip[0]) / 2, (target[1] - tip[1]) / 2) \
+            .move_by_offset(target[0] - tip[0] - (target[0] - tip[0]) / 2,
+                            target[1] - tip[1] - (target[1] - tip[1]) / 2).release().perform()
+        _wait(lambda: abs(app.theta_i - 60.0) < 1.5 and abs(app.phi_i - phi) < 2.0)
+        assert (app.theta_slider.value, app.phi_slider.value) == (app.theta_i, app.phi_i)
+        # the previews under the sky map, chosen in the page
+        before = _sphere(driver), _object(driver)
+        sky = [b for b in driver.execute_script(_DEEP, "button") if b.text.strip() == "sky map"]
+        driver.execute_script("arguments[0].scrollIntoView({block: 'center'})", sky[0])
+        sky[0].click()
+        _wait(lambda: app.lighting == "sky" and _sphere(driver) != before[0]
+              and _object(driver) != before[1])
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
