@@ -11,7 +11,10 @@ separable Smith masking, which is our default):
   result, the same contract as ours (conversion to and from Dr.Jit included);
 - ``mitsuba (kernel only)``: the same with the inputs already resident as Dr.Jit float32 arrays,
   timing only the fused evaluation kernel;
-- ``numpy``: a plain vectorised numpy float64 formula.
+- ``numpy``: a plain vectorised numpy float64 formula;
+- ``memory bound``: a numba kernel on both cores that only reads the same float64 arrays and
+  writes an output of the same shape into a fresh array (no formula): the limit of any
+  evaluation with numpy arrays in and out, set by memory traffic and page faults.
 
 Ratios are printed against each baseline; the values of all three are compared too.
 """
@@ -20,6 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
+import numba
 import numpy as np
 
 import brdf
@@ -45,6 +49,22 @@ def numpy_lambert_ggx(wi, wo):
     return np.asarray(ALBEDO) / np.pi + np.asarray(KS) * spec[:, None]
 
 
+@numba.njit(parallel=True)
+def read_write(wi, wo, out):
+    """Reads every input value and writes every output value, nothing else."""
+    for k in numba.prange(wi.shape[0]):
+        s = wi[k, 0] + wi[k, 1] + wi[k, 2] + wo[k, 0] + wo[k, 1] + wo[k, 2]
+        out[k, 0] = s
+        out[k, 1] = s
+        out[k, 2] = s
+
+
+def memory_bound(wi, wo):
+    out = np.empty((len(wi), 3))
+    read_write(wi, wo, out)
+    return out
+
+
 def mitsuba_rows(wi, wo, repeats):
     sys.path.insert(0, str(Path(__file__).parent))
     import mitsuba_baseline as mb
@@ -68,7 +88,9 @@ def main():
     ours = model.eval(wi, wo)
     rows = [("brdf Model.eval (float64)", *best_time(lambda: model.eval(wi, wo), args.repeats)),
             ("plain numpy formula (float64)",
-             *best_time(lambda: numpy_lambert_ggx(wi, wo), args.repeats))]
+             *best_time(lambda: numpy_lambert_ggx(wi, wo), args.repeats)),
+            ("memory bound: read inputs, write output (numba)",
+             *best_time(lambda: memory_bound(wi, wo), args.repeats))]
     checks = [("numpy", numpy_lambert_ggx(wi, wo))]
     try:
         ref, extra = mitsuba_rows(wi, wo, args.repeats)

@@ -16,17 +16,25 @@ free RGB albedo, RGB ks and one shared alpha (7 parameters).
   plain numpy formula; its result is scored with our loss, so the two losses compare directly.
 
 Target (issue 5): ours under 3 s and at least 5 times faster, reaching a loss no worse.
+
+Before the fits, the passes a fit repeats are timed in samples per second, against a baseline
+measured in the same run (issue 27: at least 200 M samples/s): ``Problem.loss`` and
+``Problem.loss_and_gradient`` at the start, and a numba kernel on both cores that only reads
+the arrays the pass reads (wi, wo, the terms' scale, target and weight) and sums a square per
+sample, with no formula: the memory-bound limit of the pass.
 """
 
 import argparse
 import os
 import time
 
+import numba
 import numpy as np
 from scipy.optimize import least_squares
 
 import brdf
 from brdf.fitting.problem import Problem
+from timing import best_time
 
 TRUTH = "lambert(albedo=[0.5,0.4,0.3]) + ggx(ks=[0.6,0.5,0.4], alpha=0.2)"
 START = "lambert(albedo=0.5) + ggx(ks=0.5, alpha=0.3)"
@@ -49,6 +57,33 @@ def numpy_model(p, wi, wo):
     return rho / np.pi + ks * spec[:, None]
 
 
+@numba.njit(parallel=True)
+def read_and_sum(wi, wo, scale, target, weight, out):
+    """Reads every value the loss pass reads and sums a square per sample in blocks, nothing
+    else (the channel sum stands in for the model)."""
+    block = 512
+    for b in numba.prange(out.shape[0]):
+        acc = 0.0
+        for k in range(b * block, min(wi.shape[0], (b + 1) * block)):
+            for c in range(scale.shape[1]):
+                r = scale[k, c] * (wi[k, c] + wo[k, c]) - target[k, c]
+                acc += weight[k] * r * r
+        out[b] = acc
+
+
+def pass_rows(problem, repeats):
+    """``(name, best s, median s)`` of the loss pass, the loss-and-gradient pass and the
+    memory-bound baseline at the start."""
+    s, t, x = problem.samples, problem.terms, problem.x0
+    sums = np.zeros(-(-len(s.wi) // 512))
+    return [("Problem.loss_and_gradient", *best_time(lambda: problem.loss_and_gradient(x),
+                                                     repeats)),
+            ("Problem.loss", *best_time(lambda: problem.loss(x), repeats)),
+            ("memory bound: read the pass's inputs (numba)",
+             *best_time(lambda: read_and_sum(s.wi, s.wo, t.scale, t.target, t.weight, sums),
+                        repeats))]
+
+
 def scipy_fit(samples, p0, bounds):
     """least_squares (trf, 2-point Jacobian) on the cosine-weighted residuals; returns its
     OptimizeResult (``x``, ``nfev``, ``njev``)."""
@@ -69,6 +104,8 @@ def main():
     parser.add_argument("--repeats", type=int, default=3, help="runs of brdf.fit (best kept)")
     parser.add_argument("--baseline-repeats", type=int, default=1,
                         help="runs of least_squares (best kept)")
+    parser.add_argument("--pass-repeats", type=int, default=20,
+                        help="timed runs of each pass (best kept)")
     args = parser.parse_args()
 
     table = brdf.measure(TRUTH, "merl", args.noise, seed=1)
@@ -79,6 +116,13 @@ def main():
           f"{len(problem.samples.wi):,} of {len(table):,} samples after the 80-degree cutoff")
 
     brdf.fit(table, START)  # warm-up: numba compilation or cache load
+    n = len(problem.samples.wi)
+    rows = pass_rows(problem, args.pass_repeats)
+    print(f"{'pass over the samples':44s} {'best ms':>9s} {'median ms':>10s} {'M samples/s':>12s}")
+    for name, best, median in rows:
+        print(f"{name:44s} {best * 1e3:9.2f} {median * 1e3:10.2f} {n / best / 1e6:12.1f}")
+    for name, best, _ in rows[:2]:
+        print(f"ratio {name} / memory bound: {rows[2][1] / best:.2f}x")
     ours = []
     for _ in range(args.repeats):
         result = brdf.fit(table, START)

@@ -17,6 +17,7 @@ __all__ = [
     "degrees_from_directions", "normalize", "frame_from_normal", "to_local", "to_world", "reflect",
     "half_vector", "half_diff_from_directions", "directions_from_half_diff", "rotate",
     "direction_array", "real_array", "uniform_array", "flat_pairs", "broadcast_shape", "UNIT_TOL",
+    "UNIT_SQ",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -241,7 +242,8 @@ def directions_from_half_diff(theta_h, phi_h, theta_d, phi_d):
 #: precision (float32 data) stay within 3e-7; anything further was not normalised, and kernels
 #: that take it for a unit vector would return wrong values without a sign.
 UNIT_TOL = 1e-6
-_UNIT_SQ = ((1.0 - UNIT_TOL) ** 2, (1.0 + UNIT_TOL) ** 2)
+#: The accepted range of a direction's squared length (see :data:`UNIT_TOL`).
+UNIT_SQ = ((1.0 - UNIT_TOL) ** 2, (1.0 + UNIT_TOL) ** 2)
 #: From this many directions on, a compiled loop screens their lengths (see brdf._directions).
 _COMPILED_ROWS = 1024
 
@@ -260,22 +262,28 @@ def real_array(x, name):
     return arr.astype(np.float64, copy=False)
 
 
-def direction_array(x, name):
+def direction_array(x, name, screen=True):
     """``x`` as a float64 array of unit directions ``(..., 3)``; InputError naming ``name``
     and the first offending row if it holds NaN or infinite values or a vector whose length is
-    further than :data:`UNIT_TOL` from 1 (a zero vector, an unnormalised one)."""
+    further than :data:`UNIT_TOL` from 1 (a zero vector, an unnormalised one).
+
+    With ``screen`` False, the lengths of a large array (the ones a compiled loop would screen)
+    are left unchecked: for a caller whose kernel screens the rows as it reads them (squared
+    lengths in :data:`UNIT_SQ`) and calls this function again to refuse them."""
     arr = real_array(x, name)
     if arr.ndim == 0 or arr.shape[-1] != 3:
         raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
+    if arr.size >= 3 * _COMPILED_ROWS and not screen:
+        return arr
     if arr.size >= 3 * _COMPILED_ROWS and arr.flags.c_contiguous:
         from ._directions import first_outside
-        k = first_outside(*_UNIT_SQ, arr.reshape(-1, 3))
+        k = first_outside(*UNIT_SQ, arr.reshape(-1, 3))
         if k >= 0:
             _refuse_direction(arr, np.unravel_index(k, arr.shape[:-1]), name)
     elif arr.size:
         sq = np.einsum("...i,...i->...", arr, arr)
         # NaN fails both comparisons, inf the second: one screen for all three
-        bad = ~((sq >= _UNIT_SQ[0]) & (sq <= _UNIT_SQ[1]))
+        bad = ~((sq >= UNIT_SQ[0]) & (sq <= UNIT_SQ[1]))
         if bad.any():
             _refuse_direction(arr, tuple(np.argwhere(bad)[0]), name)
     return arr
@@ -306,10 +314,11 @@ def uniform_array(u, name="u"):
     return u
 
 
-def flat_pairs(wi, wo):
-    """Broadcast ``wi`` and ``wo`` together and flatten: ``(wi (n, 3), wo (n, 3), shape)``."""
-    wi = direction_array(wi, "wi")
-    wo = direction_array(wo, "wo")
+def flat_pairs(wi, wo, screen=True):
+    """Broadcast ``wi`` and ``wo`` together and flatten: ``(wi (n, 3), wo (n, 3), shape)``
+    (``screen`` as in :func:`direction_array`)."""
+    wi = direction_array(wi, "wi", screen)
+    wo = direction_array(wo, "wo", screen)
     shape = broadcast_shape(wi, wo, "wi", "wo")
     wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
     wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))

@@ -6,6 +6,9 @@ toy kernels hold the three ways they arose (literal constants, read-only arrays,
 unsigned counter) to one specialisation each.
 """
 
+import subprocess
+import sys
+
 import numba
 import numpy as np
 import pytest
@@ -127,3 +130,35 @@ def test_fetch_add_hands_each_item_to_exactly_one_thread():
     take(queue, taken, 8)
     assert (taken == 1).all()
     assert queue[0] == taken.shape[0] + 8  # each worker's last turn finds the queue empty
+
+
+
+_VIEWS = """
+import numba, numpy as np
+from brdf.models._kernels import with_last_axis
+
+@numba.njit  # reference counted, as numba's default
+def copied_rows(a, out):
+    for lo in range(0, a.shape[0], 2):
+        v = with_last_axis(a[lo:lo + 2], 3)
+        o = with_last_axis(out[lo:lo + 2], 3)
+        for k in range(v.shape[0]):
+            for c in range(3):
+                o[k, c] = v[k, c]
+
+a = np.arange(30.0).reshape(10, 3)
+for _ in range(100):
+    out = np.zeros_like(a)
+    copied_rows(a, out)
+    assert (out == a).all()
+print(np.ones(10_000).sum())
+"""
+
+
+def test_a_view_with_a_constant_last_axis_counts_its_reference():
+    # a view sharing the array's memory without a reference of its own released that memory
+    # once per call: the allocator aborted the process ("unaligned tcache chunk"), in a
+    # subprocess here so that the failure cannot take the test session with it
+    done = subprocess.run([sys.executable, "-c", _VIEWS], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0 and done.stdout.split() == ["10000.0"], done.stderr[-2000:]

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, parallel_kernel
+from .._jit import inline_kernel, kernel, parallel_kernel
 from ..errors import InputError, ParameterError
-from ..models._kernels import lobe_eval, lobe_grad
+from ..models._kernels import lobe_eval_block, lobe_grad_dot
 from ..models.base import Component, Param, Sum
 from . import losses
 
@@ -44,6 +44,8 @@ BLOCK = 2048
 GRADIENT_BLOCK = 512
 GRADIENT_BLOCK_BYTES = 16 * GRADIENT_BLOCK * 3 * 8
 MIN_GRADIENT_BLOCK = 8
+#: Blocks of the loss-and-gradient pass per group sharing work arrays (zeroed once per group).
+GRADIENT_GROUP = 16
 _INDEXED = re.compile(r"^(?P<base>.+)\[(?P<index>\d+)\]$")
 
 
@@ -516,8 +518,9 @@ class Problem:
         """The model's values ``(n, C)`` at the samples for parameter vector ``x``."""
         from ..models._kernels import eval_array
         s = self.samples
-        f = np.zeros(s.values.shape)
-        eval_array(self._kinds, self._offsets, self.packed(x)[0], self.channels, s.wi, s.wo, f)
+        f = np.empty(s.values.shape)
+        eval_array(self._kinds, self._offsets, self.packed(x)[0], self.channels, s.wi, s.wo, f,
+                   0.0, np.inf)  # the samples' directions were screened when read
         return f
 
     @staticmethod
@@ -550,12 +553,10 @@ def _loss_sums(kinds, offs, params, lobes, nch, wi, wo, scale, target, weight, o
             for l in range(nl):
                 own = j > 0 and lobes[j, l]
                 if j == 0 or own:
-                    # one call site: the inlined eval of every family is compiled once
+                    # one call site: the block kernel is called once per lobe
                     dst = f if own else base[l]
-                    q = params[j, offs[l]:offs[l + 1]]
-                    for k in range(lo, hi):
-                        lobe_eval(kinds[l], q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0],
-                                  wo[k, 1], wo[k, 2], dst, k - lo)
+                    lobe_eval_block(kinds[l], params[j, offs[l]:offs[l + 1]], nch, wi[lo:hi],
+                                    wo[lo:hi], dst)
                 if not own:
                     f += base[l]
             for c in range(nch):
@@ -596,47 +597,66 @@ def _loss_gradient_sums(kinds, offs, params, needed, nch, wi, wo, scale, target,
     and ``grad[b, j]`` = its derivative, summed over channels, in ``params[j]`` for each j with
     ``needed[j]``.
 
-    Chain rule through the terms: the derivative of w (g(s f) - t)^2 in f is 2 w r g'(s f) s, with
-    r = g(s f) - t and g' = 1, or 1 / (offset + s f) for g = log(offset + .); times df/dq_j from
-    the lobes' ``grad_`` kernels (brdf.models._kernels.lobe_grad).
+    The blocks run in groups of :data:`GRADIENT_GROUP`, each group with one set of work arrays
+    (the derivatives' array, zeroed once: see brdf.models._kernels.lobe_grad_dot). The sums of
+    a block do not depend on its group.
     """
     n = wi.shape[0]
-    nl = kinds.shape[0]
     npar = params.shape[0]
-    for b in prange(loss.shape[0]):
-        lo = b * block
-        hi = min(n, lo + block)
-        m = hi - lo
-        f = np.zeros((m, nch))
-        d = np.zeros((npar, m, nch))
-        for l in range(nl):
-            q = params[offs[l]:offs[l + 1]]
-            dl = d[offs[l]:offs[l + 1]]
-            kind = kinds[l]
-            for k in range(lo, hi):
-                lobe_grad(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
-                          wo[k, 2], f, k - lo, dl)
-        # f becomes dL/df once scored
+    blocks = loss.shape[0]
+    for g in prange((blocks + GRADIENT_GROUP - 1) // GRADIENT_GROUP):
+        f = np.empty((block, nch))
+        fs = np.empty((block, nch))
+        ds = np.zeros((npar, block, nch))
+        for b in range(g * GRADIENT_GROUP, min(blocks, (g + 1) * GRADIENT_GROUP)):
+            lo = b * block
+            hi = min(n, lo + block)
+            if hi - lo < block:  # the last block, shorter
+                f = np.empty((hi - lo, nch))
+                fs = np.empty((hi - lo, nch))
+                ds = np.zeros((npar, hi - lo, nch))
+            _block_loss_gradient(kinds, offs, params, needed, nch, wi[lo:hi], wo[lo:hi],
+                                 scale[lo:hi], target[lo:hi], weight[lo:hi], offset, f, fs, ds,
+                                 loss[b], grad[b])
+
+
+@kernel
+def _block_loss_gradient(kinds, offs, params, needed, nch, wi, wo, scale, target, weight,
+                         offset, f, fs, ds, loss, grad):
+    """One block of :func:`_loss_gradient_sums`: ``loss[c]`` and ``grad[j]`` on the samples
+    ``wi``, ``wo`` (m rows), with work arrays ``f``, ``fs`` (m, C) and ``ds`` (P, m, C).
+
+    f is evaluated first; then the chain rule through the terms: the derivative of
+    w (g(s f) - t)^2 in f is 2 w r g'(s f) s, with r = g(s f) - t and g' = 1, or
+    1 / (offset + s f) for g = log(offset + .); times df/dq_j from each lobe's ``grad_``
+    kernel (brdf.models._kernels.lobe_grad_dot).
+    """
+    m = wi.shape[0]
+    for k in range(m):
         for c in range(nch):
-            acc = 0.0
-            if offset > 0.0:
-                for k in range(lo, hi):
-                    s = scale[k, c]
-                    v = offset + s * f[k - lo, c]
-                    r = math.log(v) - target[k, c]
-                    acc += weight[k] * r * r
-                    f[k - lo, c] = 2.0 * weight[k] * r * s / v
-            else:
-                for k in range(lo, hi):
-                    s = scale[k, c]
-                    r = s * f[k - lo, c] - target[k, c]
-                    acc += weight[k] * r * r
-                    f[k - lo, c] = 2.0 * weight[k] * r * s
-            loss[b, c] = acc
-        for j in range(npar):
-            if needed[j]:
-                acc = 0.0
-                for i in range(m):
-                    for c in range(nch):
-                        acc += f[i, c] * d[j, i, c]
-                grad[b, j] = acc
+            f[k, c] = 0.0
+    for l in range(kinds.shape[0]):
+        lobe_eval_block(kinds[l], params[offs[l]:offs[l + 1]], nch, wi, wo, f)
+    # f becomes dL/df once scored
+    for c in range(nch):
+        acc = 0.0
+        if offset > 0.0:
+            for k in range(m):
+                s = scale[k, c]
+                v = offset + s * f[k, c]
+                r = math.log(v) - target[k, c]
+                acc += weight[k] * r * r
+                f[k, c] = 2.0 * weight[k] * r * s / v
+        else:
+            for k in range(m):
+                s = scale[k, c]
+                r = s * f[k, c] - target[k, c]
+                acc += weight[k] * r * r
+                f[k, c] = 2.0 * weight[k] * r * s
+        loss[c] = acc
+    for j in range(grad.shape[0]):
+        grad[j] = 0.0
+    for l in range(kinds.shape[0]):
+        a, b = offs[l], offs[l + 1]
+        lobe_grad_dot(kinds[l], params[a:b], nch, wi, wo, f, needed[a:b], grad[a:b], fs,
+                      ds[a:b])

@@ -117,9 +117,12 @@ def undetermined(problem, x, loss):
         return [], set()
     values, vectors = np.linalg.eigh(H)
     rise_floor = UNDETERMINED_RISE * max(loss, 0.0)
+    # eigenvalues within rounding of the largest are 0: an exactly flat direction comes out
+    # as +-1e-15 of it, with a sign that the last bits of the gradients decide
+    noise = len(values) * np.finfo(float).eps * np.abs(values).max()
     out, names = [], set()
     for lam, v in zip(values, vectors.T):
-        rise = 0.5 * max(lam, 0.0) * PROBE_STEP ** 2
+        rise = 0.5 * (lam if lam > noise else 0.0) * PROBE_STEP ** 2
         if rise > rise_floor:  # at a zero loss only an exactly flat direction counts
             continue
         for i in np.flatnonzero(np.abs(v) >= EIGEN_SHARE):

@@ -17,7 +17,11 @@ scalar kernels (wi, wo in the local frame; the dispatchers below are generated f
 - optionally ``albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out) -> (cos_o, piece)``, the
   albedo's integrand f cos / pdf in closed form (see ``lobe_weight``), where that is cheaper
   than ``eval`` and ``pdf`` or the albedo integrates the lobe's terms apart (``ALBEDO_TERMS``);
-- for a delta lobe, ``reflectance_(q, nch, ch, iz)`` instead of ``eval_``, ``grad_`` and ``pdf_``.
+- for a delta lobe, ``reflectance_(q, nch, ch, iz)`` instead of ``eval_``, ``grad_`` and ``pdf_``;
+- optionally ``eval_rows_(q, nch, wi, wo, out) -> bool`` and ``grad_rows_(q, nch, wi, wo, out,
+  d) -> bool``: ``eval_`` and ``grad_`` at every row k of a block (``wi``, ``wo`` (m, 3)), where
+  the family has tests of constant parameters to take out of the loop over rows so that it
+  vectorises (see ``lobe_eval_block``); False leaves the rows to ``eval_`` and ``grad_``.
 
 A kernel may take any of these parameters by name, and a module serving several families (GGX
 and Beckmann, Phong's two forms) takes the row's variant as an extra first parameter.
@@ -31,7 +35,11 @@ import importlib
 import inspect
 
 import numpy as np
+from llvmlite import ir
 from numba import prange
+from numba.core import cgutils, types
+from numba.core.imputils import impl_ret_borrowed
+from numba.extending import intrinsic
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from . import _kinds as K
@@ -182,6 +190,46 @@ The albedo's integrand: f cos(theta_o) / pdf of term ``term`` of a lobe at the s
     invalid); for the others the weight is ``eval`` times cos / ``pdf`` at the sample."""
 
 
+# Dispatchers over a block of rows (wi, wo (m, 3)): the family is tested once per block, and
+# the loop over the rows then holds one formula, which LLVM can vectorise (see
+# ``lobe_eval_block``). A family may provide the rows hook (``eval_rows_``, ``grad_rows_``,
+# taking the dispatcher's arguments by name) to take its own tests of constant parameters out
+# of that loop, as microfacet lobes do with their Fresnel term (it returns False to leave the
+# rows to the loop below). Otherwise the loop calls the family's per-pair hook at each row.
+_ROW_DISPATCHERS = (
+    # name, parameters, rows hook, per-pair hook, doc
+    ("lobe_eval_rows", "kind, q, nch, wi, wo, out", "eval_rows_", "eval_",
+     "Add f(wi_k, wo_k) to ``out[k, :nch]`` at every row k of ``wi`` and ``wo``."),
+    ("lobe_grad_rows", "kind, q, nch, wi, wo, out, d", "grad_rows_", "grad_",
+     "Add f(wi_k, wo_k) to ``out[k, :nch]`` and set ``d[j, k, c]`` as :func:`lobe_grad` does,\n"
+     "    at every row k of ``wi`` and ``wo``."),
+)
+_ROW = "ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]"
+
+
+def _row_branches(rows_hook, hook, params):
+    """``(condition, body)`` of a rows dispatcher for each family, as :func:`_branches`."""
+    out = []
+    for row in K.FAMILIES:
+        kind, _, name, _ = row
+        module = _FAMILY_MODULES[name]
+        if _is_delta_family(kind, module):
+            body = "pass  # a delta lobe's eval is 0, and so are its derivatives"
+        elif hasattr(module, hook):
+            call = _hook_call(row, module, hook, params + ["k", *_ROW.split(" = ")[0].split(", ")])
+            body = f"for k in range(wi.shape[0]):\n    {_ROW}\n    {call}"
+            if hasattr(module, rows_hook):
+                loop = "\n".join("    " + line for line in body.split("\n"))
+                body = f"if not {_hook_call(row, module, rows_hook, params)}:\n{loop}"
+        else:
+            raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
+        if out and out[-1][1] == body:
+            out[-1] = (out[-1][0] + f" or kind == K.{kind}", body)
+        else:
+            out.append((f"kind == K.{kind}", body))
+    return out
+
+
 def _generate():
     """Source of every dispatcher over the family table."""
     parts = []
@@ -190,6 +238,9 @@ def _generate():
         optional = hook == "reflectance_"
         lines = _chain(_branches(hook, names, template, delta_body, optional), fallback)
         parts.append(_function(decorator, name, params, doc, lines or ["    pass"]))
+    for name, params, rows_hook, hook, doc in _ROW_DISPATCHERS:
+        lines = _chain(_row_branches(rows_hook, hook, params.split(", ")), None)
+        parts.append(_function("inline_kernel", name, params, doc, lines or ["    pass"]))
     delta = [f"kind == K.{kind}" for kind, _, name, _ in K.FAMILIES
              if _is_delta_family(kind, _FAMILY_MODULES[name])]
     parts.append(_function("kernel", "is_delta", "kind", "Whether ``kind`` is a delta lobe.",
@@ -259,19 +310,25 @@ def lobe_value(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k):
 
 
 @kernel
+def lobe_derivatives(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
+    """:func:`lobe_grad` as a kernel of its own (see :func:`lobe_value`), for loops over pairs
+    that are not vectorised: one compiled copy of every family's derivatives serves them."""
+    lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
+
+
+@kernel
 def mixture_gradient(kinds, offs, p, ix, iy, iz, ox, oy, oz, out, d):
     """f(wi, wo) in RGB of the sum of the lobes on the one parameter vector ``p`` into
     ``out[0]``, and df_c / dp[j] into ``d[j, 0, c]`` for every packed parameter (0 where f does
-    not depend on it): the renderer's derivative images (a kernel of its own: see
-    :func:`lobe_value`)."""
+    not depend on it): the renderer's derivative images."""
     for c in range(3):
         out[0, c] = 0.0
     for j in range(offs[kinds.shape[0]]):
         for c in range(3):
             d[j, 0, c] = 0.0
     for l in range(kinds.shape[0]):
-        lobe_grad(kinds[l], p[offs[l]:offs[l + 1]], 3, ix, iy, iz, ox, oy, oz, out, 0,
-                  d[offs[l]:offs[l + 1]])
+        lobe_derivatives(kinds[l], p[offs[l]:offs[l + 1]], 3, ix, iy, iz, ox, oy, oz, out, 0,
+                         d[offs[l]:offs[l + 1]])
 
 
 @inline_kernel
@@ -442,37 +499,210 @@ def mixture_batch(kinds, offs, p, step, nch, q, f, u1, u2, sel, work, chosen, li
 
 # --- array drivers ---------------------------------------------------------------------------
 
-@parallel_kernel
-def eval_array(kinds, offs, p, nch, wi, wo, out):
-    """Add f(wi, wo) to ``out``: one parallel pass per lobe, so that each pass is a loop over a
-    single formula the compiler can vectorise.
+@intrinsic
+def with_last_axis(typingctx, arr, size):
+    """``arr``, a C-contiguous array whose last axis has ``size`` entries (a constant; the
+    caller vouches for it), with that length and the strides made constants of the code.
 
-    Lambertian lobes are summed into one albedo that rides along in the first other lobe's
-    pass: on its own a Lambertian pass is a full sweep over the directions and ``out`` for
-    next to no arithmetic (folding it saves a fifth of ``lambert + ggx``'s time).
-    """
+    numba addresses ``a[k, c]`` of a C array with the shape it reads at run time, so LLVM sees
+    rows of an unknown stride: it vectorises no loop that writes such rows (``out[k, c]``).
+    With the length a constant the rows are interleaved groups it vectorises. The view
+    shares ``arr``'s memory (a reference of its own where numba counts references)."""
+    if not (isinstance(arr, types.Array) and arr.layout == "C" and arr.ndim >= 1
+            and isinstance(size, types.IntegerLiteral)):
+        return None
+    n = size.literal_value
+
+    def codegen(context, builder, signature, args):
+        src = context.make_array(signature.args[0])(context, builder, args[0])
+        view = context.make_array(signature.return_type)(context, builder)
+        cgutils.copy_struct(view, src)
+        shape = cgutils.unpack_tuple(builder, src.shape)
+        shape[-1] = context.get_constant(types.intp, n)
+        step = context.get_constant(types.intp, context.get_abi_sizeof(
+            context.get_data_type(arr.dtype)))
+        strides = [step]
+        for extent in reversed(shape[1:]):
+            strides.insert(0, builder.mul(strides[0], extent))
+        view.shape = cgutils.pack_array(builder, shape)
+        view.strides = cgutils.pack_array(builder, strides)
+        # a new reference to arr's memory (a no-op in kernels without reference counting)
+        return impl_ret_borrowed(context, builder, signature.return_type, view._getvalue())
+
+    return arr(arr, size), codegen
+
+
+@kernel
+def lobe_eval_block(kind, q, nch, wi, wo, out):
+    """:func:`lobe_eval_rows` on a block of rows: ``wi``, ``wo`` (m, 3) and ``out`` (m, nch),
+    C-contiguous.
+
+    Three channels (RGB) are compiled apart with nch a constant: then each family's loop over
+    the rows is free of the loop over channels it holds, and LLVM vectorises it (with nch read
+    at run time the channels stay an inner loop of unknown length, and the rows do not
+    vectorise). Other channel counts go one pair at a time through :func:`lobe_value`, so that
+    the families' formulas are not compiled into this kernel a second time."""
+    wi = with_last_axis(wi, 3)
+    wo = with_last_axis(wo, 3)
+    if nch == 3:
+        lobe_eval_rows(kind, q, 3, wi, wo, with_last_axis(out, 3))
+    else:
+        for k in range(wi.shape[0]):
+            lobe_value(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2],
+                       out, k)
+
+
+@intrinsic(prefer_literal=True)
+def stack_array(typingctx, n0, n1, n2):
+    """A float64 array (n0, n1, n2), the lengths constants, on the stack of the kernel that the
+    call is compiled into (one array per call site, whatever loop it stands in), its values
+    undefined: work space that LLVM knows no other array to alias. The middle axis is the
+    contiguous one (``a[i, :, c]`` are adjacent), so that a loop over it, writing ``a[i, k, c]``
+    for a few fixed i and c as the families' derivatives do, stores whole vectors."""
+    if not all(isinstance(n, types.IntegerLiteral) for n in (n0, n1, n2)):
+        return None
+    shape = [n0.literal_value, n1.literal_value, n2.literal_value]
+    array = types.Array(types.float64, 3, "A")
+
+    def codegen(context, builder, signature, args):
+        item = context.get_data_type(types.float64)
+        data = cgutils.alloca_once(builder, ir.ArrayType(item, shape[0] * shape[1] * shape[2]))
+        view = context.make_array(array)(context, builder)
+        intp = [context.get_constant(types.intp, v) for v in
+                shape + [8 * shape[1] * shape[2], 8, 8 * shape[1]]]
+        context.populate_array(view, data=builder.bitcast(data, view.data.type),
+                               shape=cgutils.pack_array(builder, intp[:3]),
+                               strides=cgutils.pack_array(builder, intp[3:]),
+                               itemsize=intp[4], meminfo=None)
+        return view._getvalue()
+
+    return array(n0, n1, n2), codegen
+
+
+#: Rows and packed parameters of the work space of :func:`lobe_grad_dot` (on the stack).
+SCRATCH_ROWS, SCRATCH_SLOTS = 128, 16
+
+
+@kernel
+def lobe_grad_dot(kind, q, nch, wi, wo, g, needed, dq, fs, ds):
+    """Add to ``dq[j]``, for each j with ``needed[j]``, the sum over the rows k of ``wi``, ``wo``
+    (m, 3) and channels c of g[k, c] df_c / dq_j (f the lobe, q its packed parameters): the last
+    step of the chain rule of a loss whose derivatives in f are ``g`` (m, nch).
+
+    With three channels and at most SCRATCH_SLOTS parameters the family's derivatives go to
+    work space on the stack, SCRATCH_ROWS rows at a time: LLVM then knows that its stores alias
+    none of its inputs and vectorises the loop over rows, which runtime checks of every array
+    against the others kept scalar (see also :func:`lobe_eval_block`). Otherwise they go to
+    the caller's work arrays ``fs`` (m, nch) and ``ds`` (P, m, nch), ``ds`` zeroed (every
+    family's ``grad_`` sets the same entries at every pair, so the others stay 0)."""
+    m = wi.shape[0]
+    npar = q.shape[0]
+    if nch == 3 and npar <= SCRATCH_SLOTS:
+        fo = stack_array(1, SCRATCH_ROWS, 3)[0]
+        dd = stack_array(SCRATCH_SLOTS, SCRATCH_ROWS, 3)
+        # zeroed once: each sub-block sets the same entries again (see the docstring)
+        for j in range(npar):
+            if needed[j]:
+                for c in range(3):
+                    for k in range(SCRATCH_ROWS):
+                        dd[j, k, c] = 0.0
+        for lo in range(0, m, SCRATCH_ROWS):
+            r = min(m - lo, SCRATCH_ROWS)
+            lobe_grad_rows(kind, q, 3, with_last_axis(wi[lo:lo + r], 3),
+                           with_last_axis(wo[lo:lo + r], 3), fo, dd)
+            gb = with_last_axis(g[lo:lo + r], 3)
+            for j in range(npar):
+                if needed[j]:
+                    acc = 0.0
+                    for c in range(3):
+                        for k in range(r):
+                            acc += gb[k, c] * dd[j, k, c]
+                    dq[j] += acc
+        return
+    for k in range(m):  # one pair at a time (see lobe_eval_block)
+        lobe_derivatives(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
+                         wo[k, 2], fs, k, ds)
+    for j in range(npar):
+        if needed[j]:
+            acc = 0.0
+            for k in range(m):
+                for c in range(nch):
+                    acc += g[k, c] * ds[j, k, c]
+            dq[j] += acc
+
+
+#: Rows per block of :func:`eval_array`: a block of wi, wo and out (12 kB) stays in the
+#: first-level cache while each lobe in turn adds to it.
+ROWS = 256
+
+
+@kernel
+def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
+    """Set ``out[k, :nch]`` to f(wi_k, wo_k), the sum of the lobes, at every row of a block
+    (see :func:`lobe_eval_block`); returns the number of rows where the squared length of wi
+    or wo is outside [low, high] (NaN included).
+
+    With three channels, the Lambertian lobes are summed into one albedo that sets ``out``
+    in the pass that would otherwise zero it (a Lambertian pass of its own cost as much as
+    the GGX pass of ``lambert + ggx``). That loop reads the rows with their length as numba
+    reads it: with the length a constant (:func:`with_last_axis`) LLVM loads all three
+    coordinates of each row and shuffles them, for the one it needs, at half the speed."""
+    if nch == 3:
+        d0 = d1 = d2 = 0.0
+        diffuse = False
+        for l in range(kinds.shape[0]):
+            if kinds[l] == K.LAMBERT:
+                d0 += p[offs[l]]
+                d1 += p[offs[l] + 1]
+                d2 += p[offs[l] + 2]
+                diffuse = True
+        if diffuse:
+            for k in range(out.shape[0]):
+                v = lambert.per_albedo(wi[k, 2], wo[k, 2])  # f = rho / pi
+                out[k, 0] = d0 * v
+                out[k, 1] = d1 * v
+                out[k, 2] = d2 * v
+        else:  # zeroing alone runs at three times the speed of that loop
+            for k in range(out.shape[0]):
+                for c in range(3):
+                    out[k, c] = 0.0
+        for l in range(kinds.shape[0]):
+            if kinds[l] != K.LAMBERT:
+                lobe_eval_block(kinds[l], p[offs[l]:offs[l + 1]], 3, wi, wo, out)
+    else:
+        for k in range(out.shape[0]):
+            for c in range(nch):
+                out[k, c] = 0.0
+        for l in range(kinds.shape[0]):
+            lobe_eval_block(kinds[l], p[offs[l]:offs[l + 1]], nch, wi, wo, out)
+    a = with_last_axis(wi, 3)
+    b = with_last_axis(wo, 3)
+    bad = 0
+    for k in range(a.shape[0]):
+        si = a[k, 0] * a[k, 0] + a[k, 1] * a[k, 1] + a[k, 2] * a[k, 2]
+        so = b[k, 0] * b[k, 0] + b[k, 1] * b[k, 1] + b[k, 2] * b[k, 2]
+        bad += 0 if (si >= low and si <= high and so >= low and so <= high) else 1
+    return bad
+
+
+@parallel_kernel
+def eval_array(kinds, offs, p, nch, wi, wo, out, low, high):
+    """Set ``out`` (n, C) to f(wi, wo); returns the number of pairs where the squared length of
+    wi or wo is outside [low, high] (NaN included): the screen of unit vectors, made here
+    while the rows are in cache (as a pass of its own it cost a sixth of the time).
+
+    Blocks of :data:`ROWS` rows run on all cores; per block, one pass per lobe over its rows,
+    each a loop over a single formula that LLVM vectorises (see :func:`lobe_eval_block`).
+    ``out`` is written before it is read, so a freshly allocated array costs one page fault
+    per page (adding to the zeros of ``np.zeros`` cost two: the read maps the shared zero
+    page, the write then copies it)."""
     n = wi.shape[0]
-    diffuse = np.zeros(nch)
-    folded = False
-    others = [-1]  # lobe -1 (no formula) carries the Lambertian sum if nothing else does
-    for l in range(kinds.shape[0]):
-        if kinds[l] == K.LAMBERT:
-            diffuse += p[offs[l]:offs[l] + nch]
-            folded = True
-        elif others[0] < 0:
-            others[0] = l
-        else:
-            others.append(l)
-    for i in range(len(others)):
-        l = others[i]
-        kind = kinds[l] if l >= 0 else -1
-        q = p[offs[l]:offs[l + 1]] if l >= 0 else p[:0]
-        fold = folded and i == 0
-        for k in prange(n):
-            ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]
-            if fold:
-                lambert.eval_(diffuse, nch, ix, iy, iz, ox, oy, oz, out, k)
-            lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k)
+    bad = 0
+    for b in prange((n + ROWS - 1) // ROWS):
+        lo = b * ROWS
+        hi = min(n, lo + ROWS)
+        bad += eval_rows(kinds, offs, p, nch, wi[lo:hi], wo[lo:hi], out[lo:hi], low, high)
+    return bad
 
 
 @parallel_kernel
@@ -482,8 +712,8 @@ def grad_array(kinds, offs, p, nch, wi, wo, out, d):
     for k in prange(wi.shape[0]):
         ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]
         for l in range(kinds.shape[0]):
-            lobe_grad(kinds[l], p[offs[l]:offs[l + 1]], nch, ix, iy, iz, ox, oy, oz, out, k,
-                      d[offs[l]:offs[l + 1]])
+            lobe_derivatives(kinds[l], p[offs[l]:offs[l + 1]], nch, ix, iy, iz, ox, oy, oz, out,
+                             k, d[offs[l]:offs[l + 1]])
 
 
 #: Directions per batch of the parallel drivers of :func:`mixture_batch`.

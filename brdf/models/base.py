@@ -14,7 +14,7 @@ import numpy as np
 
 from ..arguments import integer, real
 from ..errors import InputError, ParameterError, SpecError
-from ..geometry import broadcast_shape, direction_array, flat_pairs, uniform_array
+from ..geometry import UNIT_SQ, broadcast_shape, direction_array, flat_pairs, uniform_array
 
 __all__ = ["Param", "Choice", "Nested", "Start", "Component", "Model", "Sum", "Compiled", "Layout",
            "sample_inputs"]
@@ -501,10 +501,13 @@ class Model(Component):
             from . import mixed
             return mixed.eval(self, wi, wo)
         from . import _kernels
-        wi, wo, shape = flat_pairs(wi, wo)
+        given = wi, wo
+        wi, wo, shape = flat_pairs(wi, wo, screen=False)  # the kernel screens the lengths
         c = self._compiled()
-        out = np.zeros((wi.shape[0], c.nch))
-        _kernels.eval_array(*c.args, wi, wo, out)
+        out = np.empty((wi.shape[0], c.nch))
+        if _kernels.eval_array(*c.args, wi, wo, out, *UNIT_SQ):
+            direction_array(given[0], "wi")  # raise, naming the first row refused
+            direction_array(given[1], "wo")
         return out.reshape(shape + (c.nch,))
 
     def pdf(self, wi, wo):

@@ -28,14 +28,14 @@ class Lambert(Model):
 
 
 @kernel
-def _lobe(iz, oz):
+def per_albedo(iz, oz):
     """f per unit albedo: 1 / pi above the horizon (a select keeps the array loop vectorised)."""
     return INV_PI if (iz > 0.0 and oz > 0.0) else 0.0
 
 
 @inline_kernel
 def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    v = _lobe(iz, oz)
+    v = per_albedo(iz, oz)
     for c in range(nch):
         out[k, c] += q[c] * v  # f = rho / pi
 
@@ -43,7 +43,7 @@ def eval_(q, nch, ix, iy, iz, ox, oy, oz, out, k):
 @inline_kernel
 def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
     """Add f to ``out[k, :nch]``, set ``d[c, k, c]`` = df_c / drho_c = 1 / pi (f = rho / pi)."""
-    v = _lobe(iz, oz)
+    v = per_albedo(iz, oz)
     for c in range(nch):
         out[k, c] += q[c] * v
         d[c, k, c] = v
