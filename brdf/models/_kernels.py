@@ -137,6 +137,15 @@ def _branches(hook, params, template, delta_body, optional):
             continue
         else:
             raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
+        out.append((kind, body))
+    return _merged(out)
+
+
+def _merged(bodies):
+    """``(condition, body)`` from ``(kind, body)`` in table order, neighbours with the same
+    body merged into one condition."""
+    out = []
+    for kind, body in bodies:
         if out and out[-1][1] == body:
             out[-1] = (out[-1][0] + f" or kind == K.{kind}", body)
         else:
@@ -223,11 +232,8 @@ def _row_branches(rows_hook, hook, params):
                 body = f"if not {_hook_call(row, module, rows_hook, params)}:\n{loop}"
         else:
             raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
-        if out and out[-1][1] == body:
-            out[-1] = (out[-1][0] + f" or kind == K.{kind}", body)
-        else:
-            out.append((f"kind == K.{kind}", body))
-    return out
+        out.append((kind, body))
+    return _merged(out)
 
 
 def _generate():
