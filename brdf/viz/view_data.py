@@ -10,11 +10,12 @@ call for.
 
 import functools
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import BRDFError, InputError
 from ..geometry import (directions_from_half_diff, frame_from_normal, spherical_to_cartesian,
                         to_local)
 from .lobes import LOG_DECADES, lobe_values
@@ -25,7 +26,8 @@ __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_r
            "sphere_preview", "sphere_render", "object_preview", "object_render", "lit_object",
            "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
            "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
-           "sky_map", "sky_lights", "SKY_SHAPE", "SKY_LIGHTS"]
+           "sky_map", "sky_lights", "map_lights", "environment_map", "SKY_SHAPE",
+           "SKY_LIGHTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
 #: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
@@ -534,11 +536,11 @@ def lit_object(material, environment=ENVIRONMENT):
 def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, lighting="key",
                   **options):
     """The lit object path traced (:func:`lit_object`; under :func:`sky_map` alone when
-    ``lighting="sky"``), NaN off the torus as :func:`object_preview` (its mask: the mesh's
+    ``lighting="sky"``, under a map alone when ``lighting`` is its radiance array), NaN off the torus as :func:`object_preview` (its mask: the mesh's
     silhouette differs by under a pixel). ``options`` go to :func:`brdf.render.render`
     (``max_depth=2``: direct light only)."""
     from .. import render
-    scene = (lit_object(material, environment) if lighting == "key" else
+    scene = (lit_object(material, environment) if _is_key(lighting) else
              _scene(torus_mesh(material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp),
                                    size=(int(size), int(size)), seed=seed, progress=False,
@@ -585,21 +587,53 @@ def sky_map(shape=SKY_SHAPE):
 
 @functools.lru_cache(maxsize=4)
 def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
-    """The sky map as ``count`` (a power of 2) directional lights for the previews: Debevec's
-    median cut (2005, "A Median Cut Algorithm for Light Probe Sampling"): regions of the map
-    split in two of equal energy (luminance times solid angle) across their longer side
-    (the width scaled by sin(theta)) until there are ``count``; each becomes a light at its
-    energy centroid carrying the region's irradiance (sum of radiance times solid angle).
+    """The sky map (:func:`sky_map`) as ``count`` directional lights (:func:`map_lights`).
 
     Returns
     -------
     directions : ndarray (count, 3)
     irradiance : ndarray (count, 3)
     """
-    radiance = sky_map(shape)
+    return map_lights(sky_map(shape), count)
+
+
+#: Rows the median cut of a larger map works on: blocks of its pixels summed (their power and
+#: energy-weighted direction kept), so a 2k map's lights cost what a 256-row map's do.
+CUT_ROWS = 256
+
+
+def _blocks(a, fh, fw):
+    h, w = a.shape[:2]
+    return a.reshape(h // fh, fh, w // fw, fw, *a.shape[2:]).sum((1, 3))
+
+
+def map_lights(radiance, count=SKY_LIGHTS):
+    """An environment map ``radiance`` ``(h, w, 3)`` in Mitsuba 3's envmap layout as ``count``
+    (a power of 2) directional lights for the previews: Debevec's median cut (2005, "A Median
+    Cut Algorithm for Light Probe Sampling"): regions of the map split in two of equal energy
+    (luminance times solid angle) across their longer side (the width scaled by sin(theta))
+    until there are ``count``; each becomes a light at its energy centroid carrying the
+    region's irradiance (sum of radiance times solid angle). A map of more than
+    :data:`CUT_ROWS` rows is cut on blocks of its pixels (sums of power), when its size
+    divides.
+
+    Returns
+    -------
+    directions : ndarray (count, 3)
+    irradiance : ndarray (count, 3)
+    """
+    radiance = np.asarray(radiance, float)
+    shape = radiance.shape[:2]
     d, omega = _map_directions(shape)
     power = radiance * omega[..., None]
     energy = power @ np.array([0.2126, 0.7152, 0.0722])  # luminance, ITU-R BT.709
+    weighted = d * energy[..., None]
+    factor = max(1, shape[0] // CUT_ROWS)
+    while factor > 1 and (shape[0] % factor or shape[1] % factor):
+        factor -= 1
+    if factor > 1:
+        power, energy, weighted = (_blocks(a, factor, factor) for a in (power, energy, weighted))
+        shape = energy.shape
     regions = [(0, shape[0], 0, shape[1])]
     while len(regions) < count:
         split = []
@@ -618,30 +652,83 @@ def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
         regions = split
     directions, irradiance = [], []
     for r0, r1, c0, c1 in regions:
-        e = energy[r0:r1, c0:c1]
-        centre = (d[r0:r1, c0:c1] * e[..., None]).sum((0, 1))
+        centre = weighted[r0:r1, c0:c1].sum((0, 1))
+        if not np.any(centre):  # a black region: its middle pixel's direction
+            centre = _map_directions(shape)[0][(r0 + r1) // 2, (c0 + c1) // 2]
         directions.append(centre / np.linalg.norm(centre))
         irradiance.append(power[r0:r1, c0:c1].sum((0, 1)))
     return np.array(directions), np.array(irradiance)
 
 
+def environment_map(source):
+    """A user's environment map for the previews and the path tracer: radiance ``(h, w, 3)``
+    from a lat-long (equirectangular) OpenEXR file in Mitsuba 3's envmap layout, read by the
+    renderer's own reader (:func:`brdf.render.image.read_image`, as
+    :class:`brdf.render.Environment` reads its ``map``), or from an array.
+
+    Refused with one line (:class:`~brdf.errors.FormatError` for a file,
+    :class:`~brdf.errors.InputError` for an array): a file that is not ``.exr`` or not
+    readable, a map that is not twice as wide as high, NaN or infinite values, negative
+    radiance, a map that is black everywhere.
+    """
+    from ..errors import FormatError
+    from ..render.image import read_image
+    is_path = isinstance(source, (str, os.PathLike))
+    what = "environment map"
+    if is_path and not os.fspath(source).lower().endswith(".exr"):
+        if not os.path.exists(source):
+            raise InputError(f"{os.fspath(source)}: {what}: no such file")
+        raise FormatError(source, "", f"{what}: expected a lat-long OpenEXR file (.exr)")
+
+    def refuse(where, message):
+        if is_path:
+            raise FormatError(source, where, f"{what}: {message}")
+        raise InputError(f"{what}{' at ' + where if where else ''}: {message}")
+
+    try:
+        radiance = read_image(source, what, channels=3)
+    except BRDFError as exc:  # an array's refusal: said as the others
+        if is_path:
+            raise
+        refuse("", str(exc).split(": ", 2)[-1])
+    h, w = radiance.shape[:2]
+    if w != 2 * h:
+        refuse("", f"expected a lat-long map twice as wide as high, got {w} x {h} pixels")
+    negative = np.argwhere(radiance < 0)
+    if len(negative):
+        row, column, channel = negative[0]
+        refuse(f"row {row}, column {column}",
+               f"radiance {radiance[row, column, channel]:g} is negative (expected >= 0)")
+    if not radiance.any():
+        refuse("", "black everywhere (expected some light)")
+    return radiance
+
+
 def _scene(shape, material, lighting):
     """The previews' scene for the path tracer: ``shape`` under the key light and uniform
-    environment (``lighting == "key"``) or under :func:`sky_map` alone (``"sky"``)."""
+    environment (``lighting == "key"``), under :func:`sky_map` alone (``"sky"``), or under
+    an environment map alone (``lighting`` its radiance array, :func:`environment_map`)."""
     from ..render import Camera, DirectionalLight, Environment, Scene
     camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
                     fov=CAMERA_FOV)
+    if not isinstance(lighting, str):
+        return Scene(camera, [shape], [], Environment(1.0, map=np.asarray(lighting, float)))
     if lighting == "sky":
         return Scene(camera, [shape], [], Environment(1.0, map=sky_map()))
     key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
     return Scene(camera, [shape], [key], Environment(ENVIRONMENT))
 
 
+def _is_key(lighting):
+    return isinstance(lighting, str) and lighting == "key"
+
+
 def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options):
     """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
     ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
     the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
-    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead;
+    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead, or under
+    an environment map given as its radiance array (:func:`environment_map`);
     ``options`` go to :func:`brdf.render.render`.
 
     Returns
@@ -650,7 +737,7 @@ def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options)
         Radiance, NaN where the camera ray misses the sphere (as the preview).
     """
     from .. import render
-    scene = (render.builtin("sphere", material) if lighting == "key" else
+    scene = (render.builtin("sphere", material) if _is_key(lighting) else
              _scene(render.Sphere((0, 0, 0), 1.0, material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
                                    progress=False, **options).image, dtype=float)
