@@ -54,8 +54,8 @@ SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
 #: The slice selector's entry that follows the first material shown.
 FIRST_SHOWN = "first material shown"
 #: The previews' lighting choices: the key light and a uniform environment, or the bundled
-#: sky map (brdf.viz.view_data.sky_map), previewed as this many median-cut lights (fewer
-#: while a slider moves: each costs an evaluation per pixel); a map the user gives
+#: sky map (brdf.viz.view_data.sky_map), previewed with this many median-cut regions
+#: (view_data.MapStrata; fewer while a slider moves: each costs an evaluation per pixel); a map the user gives
 #: (:meth:`Explorer.set_environment`) adds the choice ``"map"``, labelled MAP_LABEL + its name.
 LIGHTING = {"key light + environment": "key", "sky map": "sky"}
 MAP_LABEL = "map: "
@@ -373,14 +373,15 @@ class Explorer:
         return out, times
 
     def lights(self, draft=False):
-        """The previews' directional lights under the chosen map (:func:`~brdf.viz.
-        view_data.map_lights`, fewer in a ``draft``), None under the key light."""
+        """The previews' lights under the chosen map: its median cut's strata
+        (:class:`~brdf.viz.view_data.MapStrata`, fewer in a ``draft``), None under the key
+        light."""
         count = DRAFT_SKY_LIGHTS if draft else SKY_LIGHTS
         if self.lighting == "sky":
-            return view_data.sky_lights(count)
+            return view_data.sky_strata(count)
         if self.lighting == "map":
             if count not in self._map_lights:
-                self._map_lights[count] = view_data.map_lights(self.environment, count)
+                self._map_lights[count] = view_data.map_strata(self.environment, count)
             return self._map_lights[count]
         return None
 
