@@ -51,6 +51,8 @@ DRAFT_SPHERE_SIZE = 64
 #: Pixels across the theta_h / theta_d slice, full and draft, and the decades its log colours
 #: span under the peak (as brdf.viz.slice_plot).
 SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
+#: The slice's colours end at its peak rounded up to a multiple of this many decades.
+SLICE_STEP = 0.25
 #: The slice selector's entry that follows the first material shown.
 FIRST_SHOWN = "first material shown"
 #: The previews' lighting choices: the key light and a uniform environment, or the bundled
@@ -940,7 +942,13 @@ class Explorer:
         f = image.mean(axis=-1)
         f = np.where(f > 0, f, np.nan)  # a log scale has no place for f <= 0: grey
         peak = float(np.nanmax(f)) if np.isfinite(f).any() else 1.0
-        self.slice_mapper.update(low=peak * 10.0 ** -SLICE_DECADES, high=peak)
+        # the top of the colours at the peak rounded up to a step of SLICE_STEP decades: a new
+        # range makes the page lay out the colour bar again (15-20 ms in headless chromium),
+        # so a slider's move changes it only when the peak crosses a step
+        high = 10.0 ** (math.ceil(math.log10(peak) / SLICE_STEP - 1e-9) * SLICE_STEP)
+        if (self.slice_mapper.low, self.slice_mapper.high) != (high * 10.0 ** -SLICE_DECADES,
+                                                               high):
+            self.slice_mapper.update(low=high * 10.0 ** -SLICE_DECADES, high=high)
         self.slice_source.data = {"image": [f]}
         # the material by number: a title that changes length as a slider moves would have
         # the page lay the figure out again at every move

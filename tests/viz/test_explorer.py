@@ -638,6 +638,32 @@ def test_the_explorer_lights_its_previews_with_a_users_map(tmp_path):
         Explorer([SPEC]).set_lighting("sun")
 
 
+def test_the_slice_colours_step_in_quarter_decades():
+    from brdf.viz.explorer import SLICE_DECADES, Explorer
+    app = Explorer(["ggx(alpha=0.2)"])
+    app.refine = False
+    peak = np.nanmax(view_data.slice_image(app.materials[0].model, 90.0, 90).mean(-1))
+    high = app.slice_mapper.high
+    # the top of the colours: the peak rounded up to the next quarter decade
+    assert peak <= high < peak * 10 ** 0.25 and abs(4 * math.log10(high) - round(
+        4 * math.log10(high))) < 1e-9
+    assert app.slice_mapper.low == pytest.approx(high * 10 ** -SLICE_DECADES)
+    # a move that keeps the peak within its step leaves the range (and the page's colour
+    # bar) alone: over 40 moves, a change only where the step (computed here) changes
+    changes = []
+    app.slice_mapper.on_change("high", lambda attr, old, new: changes.append(new))
+    steps, last = [], math.ceil(4 * math.log10(high) - 1e-9)
+    for alpha in np.linspace(0.2, 0.3, 40)[1:]:
+        app.set_parameter(0, "ggx.alpha", alpha)
+        peak = np.nanmax(view_data.slice_image(app.materials[0].model, 90.0, 90).mean(-1))
+        step = math.ceil(4 * math.log10(peak) - 1e-9)
+        if step != last:
+            steps.append(10 ** (step / 4))
+        last = step
+    np.testing.assert_allclose(changes, steps, rtol=1e-9)
+    assert 0 < len(changes) <= 4
+
+
 def test_the_slice_shows_the_material_chosen_in_its_list():
     from brdf.viz.explorer import FIRST_SHOWN, Explorer
     app = Explorer(["ggx(alpha=0.1)", SPEC])
