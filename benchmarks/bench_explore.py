@@ -140,11 +140,13 @@ def in_browser(repeats, floor=False):
               root.querySelectorAll('*').forEach(e => { if (e.shadowRoot) walk(e.shadowRoot); });
             })(document);
             return found[0];""")
-        times = []
+        times, server_side = [], []
         # the slider moves log10(alpha)
         for alpha in [0.3] + _alphas(repeats):
             times.append(driver.execute_async_script(_ROUND_TRIP, "ggx.alpha",
                                                      math.log10(alpha), canvas, floor) / 1e3)
+            server_side.append(server.explorers[-1].timings.get("total", 0.0))
+        in_browser.server_side = server_side[1:]  # the update's own time in each round trip
         return times[1:]
     finally:
         explorer.Explorer.update = full_update
@@ -181,6 +183,7 @@ def main():
         times = in_browser(args.repeats)
         if times:
             _row("browser, while moving: all redrawn", times)
+            _row("  of which the server's update", in_browser.server_side)
             _row("browser, computing nothing (floor)", in_browser(args.repeats, floor=True))
 
 

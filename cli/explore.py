@@ -21,6 +21,10 @@ def add_parser(sub, subcommand):
     p.add_argument("materials", metavar="MATERIAL", nargs="*", help=MATERIAL_HELP)
     p.add_argument("--port", type=arguments.integer(1, 65535, "a TCP port"), default=None,
                    metavar="N", help="serve on localhost:N (default: a free port)")
+    p.add_argument("--environment", metavar="FILE.exr", default=None,
+                   help="light the previews with this environment map (lat-long OpenEXR, "
+                        "Mitsuba 3's envmap layout, as brdf-fit render reads it); another "
+                        "can be uploaded in the page")
     p.add_argument("--no-browser", action="store_true",
                    help="do not open the page in a browser; print its address only")
 
@@ -32,7 +36,9 @@ def run(args, out):
     from brdf.viz.explorer import explore, require_panel
     require_panel()
     materials = [load_subject(text) for text in args.materials]
-    server = explore(*materials, port=args.port, show=not args.no_browser)
+    # a bad map is refused (exit 2) before anything is served
+    server = explore(*materials, port=args.port, show=not args.no_browser,
+                     environment=args.environment)
     if args.json:
         out.json({"url": server.url, "port": server.port})
     else:

@@ -51,12 +51,16 @@ DRAFT_SPHERE_SIZE = 64
 #: Pixels across the theta_h / theta_d slice, full and draft, and the decades its log colours
 #: span under the peak (as brdf.viz.slice_plot).
 SLICE_SIZE, DRAFT_SLICE_SIZE, SLICE_DECADES = 90, 45, 4.0
+#: The slice's colours end at its peak rounded up to a multiple of this many decades.
+SLICE_STEP = 0.25
 #: The slice selector's entry that follows the first material shown.
 FIRST_SHOWN = "first material shown"
 #: The previews' lighting choices: the key light and a uniform environment, or the bundled
-#: sky map (brdf.viz.view_data.sky_map), previewed as this many median-cut lights (fewer
-#: while a slider moves: each costs an evaluation per pixel).
+#: sky map (brdf.viz.view_data.sky_map), previewed with this many median-cut regions
+#: (view_data.MapStrata; fewer while a slider moves: each costs an evaluation per pixel); a map the user gives
+#: (:meth:`Explorer.set_environment`) adds the choice ``"map"``, labelled MAP_LABEL + its name.
 LIGHTING = {"key light + environment": "key", "sky map": "sky"}
+MAP_LABEL = "map: "
 SKY_LIGHTS, DRAFT_SKY_LIGHTS = 32, 16
 #: Samples per pixel of the path-traced sphere that replaces the preview once the sliders
 #: rest (64 at 128 x 128: about 0.25 s for lambert + ggx on this machine).
@@ -132,6 +136,10 @@ class Explorer:
         Models, tables, specs, fit-report or measured-file paths (see :func:`material_from`).
     theta_i, phi_i : float
         The incident direction, degrees.
+    environment : str, path or ndarray, optional
+        An environment map to light the previews with (:meth:`set_environment`).
+    environment_label : str, optional
+        Its name in the page (default: the file's name).
 
     Attributes
     ----------
@@ -141,7 +149,8 @@ class Explorer:
         Seconds each view took to recompute in the last update, and ``"total"``.
     """
 
-    def __init__(self, materials=(), *, theta_i=30.0, phi_i=0.0):
+    def __init__(self, materials=(), *, theta_i=30.0, phi_i=0.0, environment=None,
+                 environment_label=None):
         pn = require_panel()
         self._doc = pn.state.curdoc  # the browser session's document, when served
         self.materials = []
@@ -151,9 +160,13 @@ class Explorer:
         self.refine = True
         self.refine_thread = None
         self.timings = {}
+        #: The user's environment map (radiance (h, w, 3)), its name, its lights by count.
+        self.environment, self.environment_label, self._map_lights = None, None, {}
         self._build(pn)
         for subject in materials:
             self.add(subject)
+        if environment is not None:
+            self.set_environment(environment, environment_label, update=False)
         self.update()
 
     # -- materials --------------------------------------------------------------------------
@@ -194,6 +207,32 @@ class Explorer:
         as ``filename``, as :meth:`add_from_text` does with a path: saved under its own name
         in this explorer's folder of uploads (formats are told by extension, then content),
         a bad file's one line in the page. True when the material was added."""
+        path, folder = self._save_upload(filename, data)
+        return self.add_from_text(path, label=os.path.basename(path), hide=folder)
+
+    def _upload_from_page(self, event):
+        """The file input's file, added on the document's next tick (see _add_from_page)."""
+        self._from_file_input(self.upload_input, event, self.upload)
+
+    def _environment_from_page(self, event):
+        """The map input's file, loaded on the document's next tick."""
+        self._from_file_input(self.environment_input, event, self.upload_environment)
+
+    def _from_file_input(self, widget, event, take):
+        if event.new is None:
+            return
+        name, data = widget.filename, event.new
+
+        def add():
+            take(name, data)
+            # forget it, here and in the page, so that the same file can come again
+            widget.param.update(value=None, filename=None)
+            widget.clear()
+        self._soon(add)
+
+    def _save_upload(self, filename, data):
+        """Save ``data`` uploaded as ``filename`` under its own name in this explorer's folder
+        of uploads; returns (path, the folder to hide in messages)."""
         import tempfile
         if self._uploads is None:
             # removed with the explorer (and at exit): tables may read their file lazily
@@ -203,20 +242,48 @@ class Explorer:
         path = os.path.join(folder, name)
         with open(path, "wb") as out:
             out.write(bytes(data or b""))
-        return self.add_from_text(path, label=name, hide=folder + os.sep)
+        return path, folder + os.sep
 
-    def _upload_from_page(self, event):
-        """The file input's file, added on the document's next tick (see _add_from_page)."""
-        if event.new is None:
-            return
-        name, data = self.upload_input.filename, event.new
+    # -- the environment map ----------------------------------------------------------------
 
-        def add():
-            self.upload(name, data)
-            # forget it, here and in the page, so that the same file can come again
-            self.upload_input.param.update(value=None, filename=None)
-            self.upload_input.clear()
-        self._soon(add)
+    def set_environment(self, source, label=None, update=True):
+        """Light the previews with the environment map ``source`` (a lat-long OpenEXR path or a
+        radiance array, :func:`brdf.viz.view_data.environment_map`), named ``label`` in the
+        page (default: the file's name): median-cut lights while sliders move, the path tracer
+        under the map once they rest. Errors propagate; the lighting stays as it was."""
+        radiance = view_data.environment_map(source)
+        if label is None:
+            label = (os.path.basename(os.fspath(source))
+                     if isinstance(source, (str, os.PathLike)) else "array")
+        self.environment, self.environment_label = radiance, str(label)
+        self._map_lights = {}
+        options = {**LIGHTING, MAP_LABEL + self.environment_label[:40]: "map"}
+        self._lighting_options = options
+        self._syncing_lighting = True  # the old choice may be gone: no update from the list
+        try:
+            self.lighting_select.options = list(options)
+        finally:
+            self._syncing_lighting = False
+        self.set_lighting("map", update=update)
+
+    def environment_from_text(self, path, label=None, hide=None):
+        """Load the environment map at ``path`` as the page does: an error shows its one line
+        in the page (less the text ``hide``) instead of raising. True when it was loaded."""
+        try:
+            self.set_environment(path, label)
+        except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
+            message = _message(exc)
+            self.error.object = message.replace(hide, "") if hide else message
+            self.error.visible = True
+            return False
+        self.error.object, self.error.visible = "", False
+        return True
+
+    def upload_environment(self, filename, data):
+        """Light the previews with the map ``data`` (bytes) uploaded as ``filename``, as
+        :meth:`environment_from_text` does with a path. True when it was loaded."""
+        path, folder = self._save_upload(filename, data)
+        return self.environment_from_text(path, label=os.path.basename(path), hide=folder)
 
     def remove(self, index):
         """Remove material number ``index`` (its card and glyphs) and update."""
@@ -294,9 +361,8 @@ class Explorer:
         times["albedo"] = time.perf_counter() - start
         start = time.perf_counter()
         # the environment's term needs the albedo at theta_o: the curve just computed
-        # under the sky map: its median-cut lights, fewer in a draft
-        lights = None if self.lighting == "key" else view_data.sky_lights(
-            DRAFT_SKY_LIGHTS if draft else SKY_LIGHTS)
+        # under a map: its median-cut lights, fewer in a draft
+        lights = self.lights(draft)
         out["sphere"] = view_data.sphere_preview(
             model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
             lights=lights)
@@ -307,6 +373,19 @@ class Explorer:
             lights=lights)
         times["object"] = time.perf_counter() - start
         return out, times
+
+    def lights(self, draft=False):
+        """The previews' lights under the chosen map: its median cut's strata
+        (:class:`~brdf.viz.view_data.MapStrata`, fewer in a ``draft``), None under the key
+        light."""
+        count = DRAFT_SKY_LIGHTS if draft else SKY_LIGHTS
+        if self.lighting == "sky":
+            return view_data.sky_strata(count)
+        if self.lighting == "map":
+            if count not in self._map_lights:
+                self._map_lights[count] = view_data.map_strata(self.environment, count)
+            return self._map_lights[count]
+        return None
 
     def slice_material(self):
         """The material the theta_h / theta_d slice shows: the one chosen in the page's
@@ -346,8 +425,9 @@ class Explorer:
         timings["total"] = time.perf_counter() - start
         self._refines = getattr(self, "_refines", 0) + 1
         if not draft and shown and self.refine:
-            self.refine_thread = self._refine([m.model for m in shown], self._refines,
-                                              self.lighting)
+            self.refine_thread = self._refine(
+                [m.model for m in shown], self._refines,
+                self.environment if self.lighting == "map" else self.lighting)
         self.timings = timings
 
     # -- the page ---------------------------------------------------------------------------
@@ -372,7 +452,10 @@ class Explorer:
         self.lighting = "key"
         self.lighting_select = pn.widgets.RadioButtonGroup(options=list(LIGHTING),
                                                            value=next(iter(LIGHTING)))
-        self.lighting_select.param.watch(lambda e: self.set_lighting(LIGHTING[e.new]), "value")
+        self._lighting_options = dict(LIGHTING)
+        self.lighting_select.param.watch(
+            lambda e: None if getattr(self, "_syncing_lighting", False) else
+            self.set_lighting(self._lighting_options[e.new]), "value")
         self.spec_input = pn.widgets.TextInput(label="add a material",
                                                placeholder="spec, fit report or measured file")
         self.add_button = pn.widgets.Button(label="add", color="primary")
@@ -381,6 +464,8 @@ class Explorer:
         self._uploads = None
         self.upload_input = pn.widgets.FileInput(multiple=False, width=300)
         self.upload_input.param.watch(self._upload_from_page, "value")
+        self.environment_input = pn.widgets.FileInput(accept=".exr", multiple=False, width=300)
+        self.environment_input.param.watch(self._environment_from_page, "value")
         self.error = pn.pane.Alert("", alert_type="danger", visible=False,
                                    css_classes=["brdf-error"])
         self.cards = pn.Column(sizing_mode="stretch_width")
@@ -439,6 +524,8 @@ class Explorer:
             pn.pane.Markdown("### Materials"), pn.Row(self.spec_input, self.add_button),
             pn.pane.Markdown("or upload a measured file or a JSON fit report:",
                              margin=(0, 10)), self.upload_input,
+            pn.pane.Markdown("light the previews with your own map (lat-long OpenEXR):",
+                             margin=(0, 10)), self.environment_input,
             self.error, self.cards, width=380)
         views = pn.Column(pn.Row(pn.Column(self.lobe_title, self.lobe),
                                  pn.Column(self.polar, self.albedo)),
@@ -731,18 +818,25 @@ class Explorer:
             self.phi_i = float(phi)
         self.update(draft)
 
-    def set_lighting(self, lighting):
+    def set_lighting(self, lighting, update=True):
         """Light the sphere and the object with ``"key"`` (the key light and a uniform
-        environment) or ``"sky"`` (the bundled sky map), and update."""
-        if lighting not in LIGHTING.values():
+        environment), ``"sky"`` (the bundled sky map) or ``"map"`` (the map given to
+        :meth:`set_environment`), and update."""
+        if lighting not in self._lighting_options.values():
             raise InputError(f"lighting {lighting!r}: expected one of "
-                             f"{', '.join(LIGHTING.values())}")
+                             f"{', '.join(self._lighting_options.values())}"
+                             + ("" if self.environment is not None else
+                                " ('map' once an environment map is loaded)"))
         self.lighting = lighting
-        label = next(k for k, v in LIGHTING.items() if v == lighting)
+        label = next(k for k, v in self._lighting_options.items() if v == lighting)
         if self.lighting_select.value != label:
-            self.lighting_select.value = label  # its watcher comes back here
-            return
-        self.update()
+            self._syncing_lighting = True
+            try:
+                self.lighting_select.value = label
+            finally:
+                self._syncing_lighting = False
+        if update:
+            self.update()
 
     def _option(self, **changes):
         for key, value in changes.items():
@@ -848,7 +942,13 @@ class Explorer:
         f = image.mean(axis=-1)
         f = np.where(f > 0, f, np.nan)  # a log scale has no place for f <= 0: grey
         peak = float(np.nanmax(f)) if np.isfinite(f).any() else 1.0
-        self.slice_mapper.update(low=peak * 10.0 ** -SLICE_DECADES, high=peak)
+        # the top of the colours at the peak rounded up to a step of SLICE_STEP decades: a new
+        # range makes the page lay out the colour bar again (15-20 ms in headless chromium),
+        # so a slider's move changes it only when the peak crosses a step
+        high = 10.0 ** (math.ceil(math.log10(peak) / SLICE_STEP - 1e-9) * SLICE_STEP)
+        if (self.slice_mapper.low, self.slice_mapper.high) != (high * 10.0 ** -SLICE_DECADES,
+                                                               high):
+            self.slice_mapper.update(low=high * 10.0 ** -SLICE_DECADES, high=high)
         self.slice_source.data = {"image": [f]}
         # the material by number: a title that changes length as a slider moves would have
         # the page lay the figure out again at every move
@@ -870,9 +970,15 @@ class Server:
     explorers : list of Explorer
     """
 
-    def __init__(self, materials, port=0, show=True, threaded=True):
+    def __init__(self, materials, port=0, show=True, threaded=True, environment=None):
         pn = require_panel()
         self.materials = [material_from(m) for m in materials]
+        # read once, before serving: a bad map is refused here, not in every tab
+        self.environment = None
+        if environment is not None:
+            label = (os.path.basename(os.fspath(environment))
+                     if isinstance(environment, (str, os.PathLike)) else "array")
+            self.environment = label, view_data.environment_map(environment)
         self.explorers = []
         # Bokeh's and Panel's scripts come from this server, never from a CDN
         os.environ["BOKEH_RESOURCES"] = "server"
@@ -885,7 +991,8 @@ class Server:
             _wait_for(self.port)
 
     def _session(self):
-        explorer = Explorer(self.materials)
+        label, radiance = self.environment or (None, None)
+        explorer = Explorer(self.materials, environment=radiance, environment_label=label)
         self.explorers.append(explorer)
         return explorer.layout
 
@@ -929,8 +1036,10 @@ def _free_port():
         return s.getsockname()[1]
 
 
-def explore(*materials, port=None, show=True):
-    """Open the explorer on ``materials`` (models, tables, specs or paths) in a local web page.
+def explore(*materials, port=None, show=True, environment=None):
+    """Open the explorer on ``materials`` (models, tables, specs or paths) in a local web page,
+    its previews lit by ``environment`` when given (a lat-long OpenEXR path or a radiance
+    array: :meth:`Explorer.set_environment`).
 
     In a script: serves the page in a background thread on ``port`` (default: a free one),
     opens it in the browser when ``show``, and returns the :class:`Server` (``.url``,
@@ -938,5 +1047,5 @@ def explore(*materials, port=None, show=True):
     notebook instead of a server.
     """
     if port is False:
-        return Explorer(materials)
-    return Server(materials, port=port or 0, show=show)
+        return Explorer(materials, environment=environment)
+    return Server(materials, port=port or 0, show=show, environment=environment)

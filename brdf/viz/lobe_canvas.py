@@ -197,16 +197,24 @@ export function render({ model, el }) {
     model.zoom = Math.max(0.2, Math.min(10, model.zoom * Math.exp(-0.001 * e.deltaY)));
     schedule();
   }, { passive: false });
-  // one drawing per frame, after every property of an update has arrived
+  // one drawing per frame while the view is turned or zoomed in the page
   let pending = false;
   function schedule() {
     if (pending) return;
     pending = true;
     requestAnimationFrame(() => { pending = false; draw(); });
   }
-  for (const name of ["lobes", "triangles", "incident", "yaw", "pitch", "zoom"]) {
-    model.on(name, schedule);
+  // the server's update: drawn as soon as all its properties have been applied (a microtask
+  // runs once the message's task is done), not at the next animation frame, which a busy
+  // headless page gives 40-60 ms later (benchmarks/bench_explore.py)
+  let queued = false;
+  function update() {
+    if (queued) return;
+    queued = true;
+    queueMicrotask(() => { queued = false; draw(); });
   }
+  for (const name of ["lobes", "triangles", "incident"]) model.on(name, update);
+  for (const name of ["yaw", "pitch", "zoom"]) model.on(name, schedule);
   draw();
   return canvas;
 }

@@ -10,11 +10,12 @@ call for.
 
 import functools
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import BRDFError, InputError
 from ..geometry import (directions_from_half_diff, frame_from_normal, spherical_to_cartesian,
                         to_local)
 from .lobes import LOG_DECADES, lobe_values
@@ -25,7 +26,9 @@ __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_r
            "sphere_preview", "sphere_render", "object_preview", "object_render", "lit_object",
            "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
            "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
-           "sky_map", "sky_lights", "SKY_SHAPE", "SKY_LIGHTS"]
+           "sky_map", "sky_lights", "map_lights", "map_lights_of", "MapStrata", "map_strata",
+           "sky_strata", "environment_map", "SKY_SHAPE",
+           "SKY_LIGHTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
 #: irradiance normal to it (the path tracer's ``lit_sphere`` scene, brdf.render.scenes).
@@ -296,8 +299,9 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     explorer's albedo curve already holds, by default 24 angles at phi = 0 (exact for isotropic
     models up to the interpolation).
 
-    ``lights``, the directional lights of an environment map (:func:`sky_lights`), replace
-    the key light and the uniform environment when given.
+    ``lights``, the directional lights of an environment map (:func:`sky_lights`) or its
+    strata (:class:`MapStrata`: sampled per pixel, then a 3 x 3 tent filter), replace the key
+    light and the uniform environment when given.
 
     Returns
     -------
@@ -314,7 +318,7 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
         radiance = _shade_lights(model, normal, view, lights)
         out = np.full((size, size, radiance.shape[-1]), np.nan)
         out[hit] = radiance
-        return out
+        return _tent(out) if _sampled(model, lights) else out
     light = np.asarray(light, float) / np.linalg.norm(light)
     radiance = _shade(model, normal, view, light, irradiance, environment, albedo)
     out = np.full((size, size, radiance.shape[-1]), np.nan)
@@ -322,28 +326,61 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
     return out
 
 
+def _sampled(model, lights):
+    """Whether the previews sample ``lights`` per pixel for ``model`` (:class:`MapStrata`
+    and a material with a sampler), and so filter the noise."""
+    return isinstance(lights, MapStrata) and hasattr(model, "sample_weighted")
+
+
+def _tent(image):
+    """``image`` ``(h, w, C)`` under a 3 x 3 tent filter ([1 2 1] / 4 each way) over its
+    pixels that are not NaN, which stay NaN: the per-pixel samples of :class:`MapStrata`
+    averaged with their neighbours' (a reconstruction filter, PBR 4th ed. section 8.8.2)."""
+    weight = np.where(np.isnan(image[..., :1]), 0.0, 1.0)
+
+    def blur(a):
+        a = np.pad(a, ((1, 1), (1, 1), (0, 0)))
+        a = a[:-2] + 2 * a[1:-1] + a[2:]
+        return a[:, :-2] + 2 * a[:, 1:-1] + a[:, 2:]
+    out = blur(np.nan_to_num(image) * weight) / np.maximum(blur(weight), 1e-300)
+    out[np.isnan(image)] = np.nan
+    return out
+
+
 def _shade_lights(model, normal, view, lights, visible=None):
     """Radiance towards ``view`` at points of ``normal`` (world, (m, 3)) lit by directional
     ``lights`` ``(directions (k, 3), irradiance (k, C))``: the reflection equation's sum over
     delta lights (Pharr et al., PBR 4th ed., eq. 4.14); ``visible`` (k, m) masks shadows."""
-    directions, irradiance = lights
     frame = frame_from_normal(normal)
     wo = to_local(view, frame)
     wo[:, 2] = np.maximum(wo[:, 2], 1e-9)  # the silhouette's rays graze the surface
     wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
-    k, m = len(directions), len(normal)
-    # every light in every point's frame at once: (k, m, 3)
-    wi = np.stack([np.asarray(directions, float) @ axis.T for axis in frame], -1)
+    m = len(normal)
+    extra = None
+    if isinstance(lights, MapStrata) and not _sampled(model, lights):
+        lights = lights.points  # a table: the median cut's point lights
+    if isinstance(lights, MapStrata):  # a direction per region and point
+        directions, irradiance = lights.sample(m)
+        extra = lights.material_term(model, wo, frame)  # the dim cells
+        wi = np.stack([np.einsum("kmc,mc->km", directions, axis) for axis in frame], -1)
+    else:
+        directions, irradiance = lights
+        # every light in every point's frame at once: (k, m, 3)
+        wi = np.stack([np.asarray(directions, float) @ axis.T for axis in frame], -1)
+    k = len(directions)
     cos = np.maximum(wi[..., 2], 0.0)
     if visible is not None:
         cos = cos * visible
     # only the pairs a light reaches: about half of them on a sphere
     light, point = np.nonzero(cos > 0.0)
     f = np.asarray(model.eval(wi[light, point], wo[point]), float)
-    irradiance = np.asarray(irradiance, float).reshape(k, -1)
-    terms = f.reshape(len(point), -1) * (cos[light, point][:, None] * irradiance[light])
-    return np.stack([np.bincount(point, terms[:, c], minlength=m)
-                     for c in range(terms.shape[1])], -1)
+    irradiance = np.asarray(irradiance, float)
+    irradiance = (irradiance[light, point] if irradiance.ndim == 3 else
+                  irradiance.reshape(k, -1)[light])
+    terms = f.reshape(len(point), -1) * (cos[light, point][:, None] * irradiance)
+    out = np.stack([np.bincount(point, terms[:, c], minlength=m)
+                    for c in range(terms.shape[1])], -1)
+    return out if extra is None else out + extra
 
 
 def _shade(model, normal, view, light, irradiance, environment, albedo):
@@ -486,7 +523,7 @@ def object_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
         radiance = _shade_lights(model, normal, view, lights)
         out = np.full((size, size, radiance.shape[-1]), np.nan)
         out[hit] = radiance
-        return out
+        return _tent(out) if _sampled(model, lights) else out
     light = np.asarray(light, float) / np.linalg.norm(light)
     normal, view, lit, hit = _object_geometry(size, tuple(light))
     radiance = _shade(model, normal, view, light, irradiance * lit, environment, albedo)
@@ -534,11 +571,11 @@ def lit_object(material, environment=ENVIRONMENT):
 def object_render(material, size=128, spp=64, seed=0, environment=ENVIRONMENT, lighting="key",
                   **options):
     """The lit object path traced (:func:`lit_object`; under :func:`sky_map` alone when
-    ``lighting="sky"``), NaN off the torus as :func:`object_preview` (its mask: the mesh's
+    ``lighting="sky"``, under a map alone when ``lighting`` is its radiance array), NaN off the torus as :func:`object_preview` (its mask: the mesh's
     silhouette differs by under a pixel). ``options`` go to :func:`brdf.render.render`
     (``max_depth=2``: direct light only)."""
     from .. import render
-    scene = (lit_object(material, environment) if lighting == "key" else
+    scene = (lit_object(material, environment) if _is_key(lighting) else
              _scene(torus_mesh(material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp),
                                    size=(int(size), int(size)), seed=seed, progress=False,
@@ -585,21 +622,44 @@ def sky_map(shape=SKY_SHAPE):
 
 @functools.lru_cache(maxsize=4)
 def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
-    """The sky map as ``count`` (a power of 2) directional lights for the previews: Debevec's
-    median cut (2005, "A Median Cut Algorithm for Light Probe Sampling"): regions of the map
-    split in two of equal energy (luminance times solid angle) across their longer side
-    (the width scaled by sin(theta)) until there are ``count``; each becomes a light at its
-    energy centroid carrying the region's irradiance (sum of radiance times solid angle).
+    """The sky map (:func:`sky_map`) as ``count`` directional lights (:func:`map_lights`).
 
     Returns
     -------
     directions : ndarray (count, 3)
     irradiance : ndarray (count, 3)
     """
-    radiance = sky_map(shape)
+    return map_lights(sky_map(shape), count)
+
+
+#: Rows the median cut of a larger map works on: blocks of its pixels summed (their power and
+#: energy-weighted direction kept), so a 2k map's lights cost what a 256-row map's do.
+CUT_ROWS = 256
+
+
+def _blocks(a, fh, fw):
+    h, w = a.shape[:2]
+    return a.reshape(h // fh, fh, w // fw, fw, *a.shape[2:]).sum((1, 3))
+
+
+def _median_cut(radiance, count):
+    """Debevec's median cut of ``radiance`` into ``count`` regions (see :func:`map_lights`):
+    the grid it cut (the map's pixels, or blocks of them), as its cells' power ``(h, w, 3)``,
+    energy ``(h, w)`` and energy-weighted direction sums ``(h, w, 3)``, and the regions as
+    (row, row end, column, column end) on that grid."""
+    radiance = np.asarray(radiance, float)
+    shape = radiance.shape[:2]
     d, omega = _map_directions(shape)
     power = radiance * omega[..., None]
     energy = power @ np.array([0.2126, 0.7152, 0.0722])  # luminance, ITU-R BT.709
+    weighted = d * energy[..., None]
+    factor = max(1, shape[0] // CUT_ROWS)
+    while factor > 1 and (shape[0] % factor or shape[1] % factor):
+        factor -= 1
+    if factor > 1:
+        power, energy, weighted, omega = (_blocks(a, factor, factor)
+                                          for a in (power, energy, weighted, omega))
+        shape = energy.shape
     regions = [(0, shape[0], 0, shape[1])]
     while len(regions) < count:
         split = []
@@ -616,32 +676,229 @@ def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
                                    .clip(0, c1 - c0 - 2))
                 split += [(r0, r1, c0, cut), (r0, r1, cut, c1)]
         regions = split
+    return power, energy, weighted, omega, regions
+
+
+def map_lights(radiance, count=SKY_LIGHTS):
+    """An environment map ``radiance`` ``(h, w, 3)`` in Mitsuba 3's envmap layout as ``count``
+    (a power of 2) directional lights for the previews: Debevec's median cut (2005, "A Median
+    Cut Algorithm for Light Probe Sampling"): regions of the map split in two of equal energy
+    (luminance times solid angle) across their longer side (the width scaled by sin(theta))
+    until there are ``count``; each becomes a light at its energy centroid carrying the
+    region's irradiance (sum of radiance times solid angle). A map of more than
+    :data:`CUT_ROWS` rows is cut on blocks of its pixels (sums of power), when its size
+    divides.
+
+    Returns
+    -------
+    directions : ndarray (count, 3)
+    irradiance : ndarray (count, 3)
+    """
+    power, energy, weighted, _, regions = _median_cut(radiance, count)
+    return map_lights_of(power, energy, weighted, regions)
+
+
+def map_lights_of(power, energy, weighted, regions):
+    """:func:`map_lights` of a cut grid and its regions (:func:`_median_cut`)."""
     directions, irradiance = [], []
     for r0, r1, c0, c1 in regions:
-        e = energy[r0:r1, c0:c1]
-        centre = (d[r0:r1, c0:c1] * e[..., None]).sum((0, 1))
+        centre = weighted[r0:r1, c0:c1].sum((0, 1))
+        if not np.any(centre):  # a black region: its middle cell's direction
+            centre = _map_directions(energy.shape)[0][(r0 + r1) // 2, (c0 + c1) // 2]
         directions.append(centre / np.linalg.norm(centre))
         irradiance.append(power[r0:r1, c0:c1].sum((0, 1)))
     return np.array(directions), np.array(irradiance)
 
 
+#: A map's cells brighter than this many times its mean radiance (luminance) are sampled as
+#: lights by :class:`MapStrata`, the others through the material's sampler.
+BRIGHT = 3.0
+#: Directions per pixel :meth:`MapStrata.material_term` draws from the material's sampler.
+MATERIAL_SAMPLES = 8
+
+
+class MapStrata:
+    """An environment map split for the previews, so that a glossy highlight under the map
+    has its shape rather than the dots of a few point lights:
+
+    - its bright cells (over :data:`BRIGHT` times the map's mean radiance: a sun, lamps),
+      within each region of the median cut (:func:`map_lights`), give each pixel one
+      direction drawn in proportion to their energy, instead of the region's one centroid:
+      structured importance sampling (Agarwal et al. 2003, "Structured Importance Sampling
+      of Environment Maps": strata of the map, importance sampled within);
+    - the rest (dim and smooth: a sky, whose point lights make dots on a glossy lobe) is
+      integrated by sampling the material instead (:meth:`material_term`:
+      :data:`MATERIAL_SAMPLES` directions per pixel from the model's own sampler, the map
+      looked up there).
+
+    Each cell of the map by one technique: a partition of the integral, so the sum stays
+    unbiased (PBR 4th ed., section 2.2). A material that cannot sample (a measured table) is
+    lit by the median cut's point lights instead (``points``). The previews apply a 3 x 3
+    tent filter to soften the noise; the draws are kept per pixel count, so the noise stands
+    still while a slider moves. Made by :func:`map_strata`; the previews take it as
+    ``lights``.
+    """
+
+    def __init__(self, power, energy, weighted, omega, regions):
+        radiance = np.divide(power, omega[..., None], out=np.zeros_like(power),
+                             where=omega[..., None] > 0)
+        luminance = radiance @ np.array([0.2126, 0.7152, 0.0722])  # ITU-R BT.709
+        bright = luminance > BRIGHT * energy.sum() / omega.sum()
+        cells = [(slice(r0, r1), slice(c0, c1)) for r0, r1, c0, c1 in regions]
+        flat = lambda a: np.concatenate([a[r, c].reshape(-1, *a.shape[2:]) for r, c in cells])
+        e, p, w = flat(energy * bright), flat(power), flat(weighted)
+        norm = np.linalg.norm(w, axis=-1, keepdims=True)
+        self.cell_directions = np.divide(w, norm, out=np.zeros_like(w), where=norm > 0)
+        # a cell's radiance over its luminance (its colour), 0 where it is black
+        self.cell_colour = np.divide(p, flat(energy)[:, None], out=np.zeros_like(p),
+                                     where=flat(energy)[:, None] > 0)
+        self.cumulative = np.cumsum(e)
+        sizes = np.array([(r.stop - r.start) * (c.stop - c.start) for r, c in cells])
+        self.last = np.cumsum(sizes) - 1
+        self.first = self.last - sizes + 1
+        self.region_energy = np.array([e[a:b + 1].sum() for a, b in zip(self.first, self.last)])
+        self.start = np.concatenate([[0.0], self.cumulative[self.last[:-1]]])
+        #: the median cut's point lights (:func:`map_lights`), for a material without sampler
+        self.points = map_lights_of(power, energy, weighted, regions)
+        #: the map's radiance per cell of the cut grid where it is not bright, (h, w, 3)
+        self.dim_radiance = radiance * ~bright[..., None]
+        self._samples = {}
+
+    def __len__(self):
+        return len(self.region_energy)
+
+    def material_term(self, model, wo, frame, seed=1):
+        """Radiance towards local ``wo`` ``(m, 3)`` from the map's dim cells, by
+        :data:`MATERIAL_SAMPLES` draws per point from ``model.sample_weighted`` (weights
+        f cos / pdf; by reciprocity drawn from the outgoing side) times the map's dim radiance
+        in the drawn direction (world, through ``frame``): ``(m, 3)``."""
+        m, n = len(wo), MATERIAL_SAMPLES
+        key = ("u", m, seed)
+        if key not in self._samples:
+            # stratified in u: n jittered rows of the unit square per point (PBR 4th ed. 8.5)
+            rng = np.random.default_rng(seed)
+            u = np.stack([(np.arange(n) + rng.random((m, n))) / n, rng.random((m, n))], -1)
+            self._samples[key] = u
+        u = self._samples[key]
+        wi, pdf, weight = model.sample_weighted(np.broadcast_to(wo[:, None], (m, n, 3)), u)
+        t, b, normal = frame
+        world = (wi[..., :1] * t[:, None] + wi[..., 1:2] * b[:, None]
+                 + wi[..., 2:] * normal[:, None])
+        h, w = self.dim_radiance.shape[:2]
+        # Mitsuba 3's envmap layout (as _map_directions): v = acos(y) / pi, u = atan2(x, -z) / 2 pi
+        row = np.clip((np.arccos(np.clip(world[..., 1], -1, 1)) / np.pi * h).astype(int),
+                      0, h - 1)
+        col = (np.mod(np.arctan2(world[..., 0], -world[..., 2]), 2 * np.pi) / (2 * np.pi)
+               * w).astype(int) % w
+        ok = (pdf > 0) & (wi[..., 2] > 0)
+        terms = np.where(ok[..., None], np.nan_to_num(weight), 0.0) * self.dim_radiance[row, col]
+        return terms.mean(1)
+
+    def sample(self, m, seed=0):
+        """Directions ``(k, m, 3)`` (one per region and pixel, in the region's bright cells)
+        and the irradiance each stands for ``(k, m, 3)``: the drawn cell's colour times its
+        region's bright energy, the estimator L omega / p of a cell drawn with probability p =
+        its energy over the region's (PBR 4th ed., eq. 2.7); zero in a region with no bright
+        cell. Kept per (m, seed)."""
+        key = (int(m), seed)
+        if key not in self._samples:
+            rng = np.random.default_rng(seed)
+            k = len(self)
+            u = 1.0 - rng.random((k, int(m)))  # in (0, 1]: never a black cell at a region's start
+            target = self.start[:, None] + u * self.region_energy[:, None]
+            cell = np.searchsorted(self.cumulative, target, side="left")
+            cell = np.clip(cell, self.first[:, None], self.last[:, None])
+            directions = self.cell_directions[cell]
+            directions[np.linalg.norm(directions, axis=-1) == 0] = (0.0, 1.0, 0.0)
+            irradiance = self.cell_colour[cell] * self.region_energy[:, None, None]
+            for a in (directions, irradiance):
+                a.flags.writeable = False
+            if len(self._samples) > 8:
+                self._samples.clear()
+            self._samples[key] = directions, irradiance
+        return self._samples[key]
+
+
+def map_strata(radiance, count=SKY_LIGHTS):
+    """The :class:`MapStrata` of ``radiance``'s median cut into ``count`` regions."""
+    return MapStrata(*_median_cut(radiance, count))
+
+
+@functools.lru_cache(maxsize=4)
+def sky_strata(count=SKY_LIGHTS, shape=SKY_SHAPE):
+    """The :class:`MapStrata` of the sky map (:func:`sky_map`)."""
+    return map_strata(sky_map(shape), count)
+
+
+def environment_map(source):
+    """A user's environment map for the previews and the path tracer: radiance ``(h, w, 3)``
+    from a lat-long (equirectangular) OpenEXR file in Mitsuba 3's envmap layout, read by the
+    renderer's own reader (:func:`brdf.render.image.read_image`, as
+    :class:`brdf.render.Environment` reads its ``map``), or from an array.
+
+    Refused with one line (:class:`~brdf.errors.FormatError` for a file,
+    :class:`~brdf.errors.InputError` for an array): a file that is not ``.exr`` or not
+    readable, a map that is not twice as wide as high, NaN or infinite values, negative
+    radiance, a map that is black everywhere.
+    """
+    from ..errors import FormatError
+    from ..render.image import read_image
+    is_path = isinstance(source, (str, os.PathLike))
+    what = "environment map"
+    if is_path and not os.fspath(source).lower().endswith(".exr"):
+        if not os.path.exists(source):
+            raise InputError(f"{os.fspath(source)}: {what}: no such file")
+        raise FormatError(source, "", f"{what}: expected a lat-long OpenEXR file (.exr)")
+
+    def refuse(where, message):
+        if is_path:
+            raise FormatError(source, where, f"{what}: {message}")
+        raise InputError(f"{what}{' at ' + where if where else ''}: {message}")
+
+    try:
+        radiance = read_image(source, what, channels=3)
+    except BRDFError as exc:  # an array's refusal: said as the others
+        if is_path:
+            raise
+        refuse("", str(exc).split(": ", 2)[-1])
+    h, w = radiance.shape[:2]
+    if w != 2 * h:
+        refuse("", f"expected a lat-long map twice as wide as high, got {w} x {h} pixels")
+    negative = np.argwhere(radiance < 0)
+    if len(negative):
+        row, column, channel = negative[0]
+        refuse(f"row {row}, column {column}",
+               f"radiance {radiance[row, column, channel]:g} is negative (expected >= 0)")
+    if not radiance.any():
+        refuse("", "black everywhere (expected some light)")
+    return radiance
+
+
 def _scene(shape, material, lighting):
     """The previews' scene for the path tracer: ``shape`` under the key light and uniform
-    environment (``lighting == "key"``) or under :func:`sky_map` alone (``"sky"``)."""
+    environment (``lighting == "key"``), under :func:`sky_map` alone (``"sky"``), or under
+    an environment map alone (``lighting`` its radiance array, :func:`environment_map`)."""
     from ..render import Camera, DirectionalLight, Environment, Scene
     camera = Camera(origin=(0, 0, CAMERA_DISTANCE), target=(0, 0, 0), up=(0, 1, 0),
                     fov=CAMERA_FOV)
+    if not isinstance(lighting, str):
+        return Scene(camera, [shape], [], Environment(1.0, map=np.asarray(lighting, float)))
     if lighting == "sky":
         return Scene(camera, [shape], [], Environment(1.0, map=sky_map()))
     key = DirectionalLight(direction=-KEY_LIGHT, irradiance=KEY_IRRADIANCE)
     return Scene(camera, [shape], [key], Environment(ENVIRONMENT))
 
 
+def _is_key(lighting):
+    return isinstance(lighting, str) and lighting == "key"
+
+
 def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options):
     """The sphere of :func:`sphere_preview` path traced (:func:`brdf.render.render` of the
     ``sphere`` scene, :func:`brdf.render.scenes.lit_sphere`): the same camera and lights, with
     the renderer's importance sampling, so the two agree up to its noise. ``material`` is a
-    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead;
+    model or a measured table. ``lighting="sky"``: under :func:`sky_map` instead, or under
+    an environment map given as its radiance array (:func:`environment_map`);
     ``options`` go to :func:`brdf.render.render`.
 
     Returns
@@ -650,7 +907,7 @@ def sphere_render(material, size=128, spp=64, seed=0, lighting="key", **options)
         Radiance, NaN where the camera ray misses the sphere (as the preview).
     """
     from .. import render
-    scene = (render.builtin("sphere", material) if lighting == "key" else
+    scene = (render.builtin("sphere", material) if _is_key(lighting) else
              _scene(render.Sphere((0, 0, 0), 1.0, material), material, lighting))
     image = np.array(render.render(scene, spp=int(spp), size=(int(size), int(size)), seed=seed,
                                    progress=False, **options).image, dtype=float)

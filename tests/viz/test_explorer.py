@@ -316,6 +316,113 @@ def test_sky_preview_agrees_with_the_path_tracer_under_the_map(spec):
     assert np.median(abs(traced[inner] / np.maximum(mirror[inner], 1e-9) - 1)) > 0.3
 
 
+def _two_lamps(shape=(32, 64)):
+    """A map unlike the sky: two warm and cool blobs on a dim grey, Mitsuba's envmap layout."""
+    h, w = shape
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    out = np.full(shape + (3,), 0.05)
+    for towards, colour in (([0.7, 0.5, 0.5], (4.0, 2.5, 1.0)), ([-0.5, 0.2, 0.8], (0.5, 1.5, 3.0))):
+        towards = np.array(towards) / np.linalg.norm(towards)
+        out += np.array(colour) * np.exp(-8.0 * (1 - d @ towards))[..., None]
+    return out
+
+
+def _write_exr(path, image):
+    from brdf.render.image import write_exr
+    write_exr(path, image, force=True)
+    return path
+
+
+def test_environment_map_reads_an_exr_and_refuses_bad_ones(tmp_path):
+    from brdf.errors import FormatError
+    lamps = _two_lamps()
+    # float32 in the file
+    np.testing.assert_allclose(view_data.environment_map(_write_exr(tmp_path / "l.exr", lamps)),
+                               lamps, rtol=1e-6)
+    negative = lamps.copy()
+    negative[3, 5, 1] = -0.5
+    cases = {"square.exr": (np.ones((8, 8, 3)), "twice as wide as high, got 8 x 8 pixels"),
+             "negative.exr": (negative, "row 3, column 5: environment map: radiance -0.5 is "
+                                        "negative (expected >= 0)"),
+             "nan.exr": (np.where(lamps > 1, np.nan, lamps), "NaN or infinite values"),
+             "black.exr": (np.zeros((4, 8, 3)), "black everywhere")}
+    for name, (image, expected) in cases.items():
+        path = _write_exr(tmp_path / name, image)
+        with pytest.raises(FormatError) as refused:
+            view_data.environment_map(path)
+        assert str(refused.value).startswith(str(path)) and expected in str(refused.value)
+        assert "\n" not in str(refused.value)
+    (tmp_path / "cut.exr").write_bytes((tmp_path / "l.exr").read_bytes()[:300])
+    with pytest.raises(FormatError, match="not a readable OpenEXR file"):
+        view_data.environment_map(tmp_path / "cut.exr")
+    (tmp_path / "map.png").write_bytes(b"not an exr")
+    with pytest.raises(FormatError, match="expected a lat-long OpenEXR file"):
+        view_data.environment_map(tmp_path / "map.png")
+    with pytest.raises(InputError, match="negative"):
+        view_data.environment_map(negative)
+
+
+def test_map_lights_of_a_large_map_keep_its_irradiance():
+    # a 1024-wide map is cut on 2 x 2 blocks of pixels: its lights carry the map's irradiance
+    # (the integral of radiance times solid angle, summed here over the pixel grid)
+    lamps = _two_lamps((64, 128))
+    big = np.kron(lamps, np.ones((8, 8, 1)))
+    h, w = big.shape[:2]
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    total = (big * (2 * np.pi ** 2 * np.sin(theta) / (h * w))[:, None, None]).sum((0, 1))
+    directions, irradiance = view_data.map_lights(big, 32)
+    np.testing.assert_allclose(irradiance.sum(0), total, rtol=1e-9)
+    # regions of equal energy (Debevec 2005), to a block's worth
+    energy = irradiance @ [0.2126, 0.7152, 0.0722]
+    np.testing.assert_allclose(energy / energy.mean(), 1.0, atol=0.2)
+    # the sky's lights are the map's lights of the sky
+    np.testing.assert_array_equal(view_data.sky_lights(16)[1],
+                                  view_data.map_lights(view_data.sky_map(), 16)[1])
+
+
+def test_a_users_map_preview_agrees_with_the_path_tracer(tmp_path):
+    model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3)")
+    lamps = view_data.environment_map(_write_exr(tmp_path / "lamps.exr", _two_lamps()))
+    preview = view_data.sphere_preview(model, 48, lights=view_data.map_lights(lamps, 64))
+    traced = view_data.sphere_render(model, 48, spp=256, seed=1, lighting=lamps, max_depth=2)
+    hit = ~np.isnan(preview[..., 0])
+    np.testing.assert_allclose(traced[hit].mean(0) / preview[hit].mean(0), 1.0, atol=0.03)
+    # the map turned round (its lamps elsewhere) does not match
+    turned = view_data.sphere_preview(model, 48, lights=view_data.map_lights(
+        np.roll(lamps, lamps.shape[1] // 2, axis=1), 64))
+    assert np.median(abs(traced[hit] / np.maximum(turned[hit], 1e-9) - 1)) > 0.3
+
+
+@pytest.mark.parametrize("spec", ["lambert(albedo=[0.2,0.2,0.2]) + ggx(alpha=0.05)",
+                                  "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3)"])
+def test_strata_show_a_glossy_highlight_under_the_map_as_the_path_tracer(spec):
+    # the path tracer (its own importance sampling of map and material, 256 spp) is the
+    # oracle: the median cut's 16 point lights put dots on a glossy sphere (off by tens of
+    # per cent per pixel), its strata with the material's sampler do not
+    model = brdf.parse(spec)
+    traced = view_data.sphere_render(model, 64, spp=256, seed=1, lighting="sky", max_depth=2)
+    hit = ~np.isnan(traced[..., 0])
+    error = lambda image: np.median(abs(image[hit] / np.maximum(traced[hit], 1e-9) - 1))
+    strata = view_data.sphere_preview(model, 64, lights=view_data.sky_strata(16))
+    points = view_data.sphere_preview(model, 64, lights=view_data.sky_lights(16))
+    assert error(strata) < 0.08, error(strata)
+    np.testing.assert_allclose(strata[hit].mean(0) / traced[hit].mean(0), 1.0, atol=0.03)
+    if "0.05" in spec:
+        assert error(points) > 0.3
+    # the same pixels draw the same directions at every call: the noise stands still
+    np.testing.assert_array_equal(
+        strata, view_data.sphere_preview(model, 64, lights=view_data.sky_strata(16)))
+    # a measured table cannot sample: lit by the point lights
+    table = brdf.read(ROOT / "measurements" / "rgl" / "paper_white_rgb.bsdf")
+    if not hasattr(table, "sample_weighted"):
+        np.testing.assert_array_equal(
+            view_data.sphere_preview(table, 16, lights=view_data.sky_strata(16)),
+            view_data.sphere_preview(table, 16, lights=view_data.sky_lights(16)))
+
+
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
     image = np.array([[[0.0], [1.0]], [[0.2], [np.nan]]])
     pixels = view_data.to_rgba(image).view(np.uint8).reshape(2, 2, 4)
@@ -474,7 +581,7 @@ def test_the_previews_switch_to_the_sky_map_and_back():
     app.lighting_select.value = "sky map"  # as the page's button does
     assert app.lighting == "sky"
     model = app.materials[0].model
-    lights = view_data.sky_lights(SKY_LIGHTS)
+    lights = view_data.sky_strata(SKY_LIGHTS)
     np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
         view_data.sphere_preview(model, SPHERE_SIZE, lights=lights)))
     np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
@@ -487,13 +594,74 @@ def test_the_previews_switch_to_the_sky_map_and_back():
     app.set_parameter(0, "ggx.alpha", 0.3, draft=True)
     np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
         view_data.sphere_preview(app.materials[0].model, 64,
-                                 lights=view_data.sky_lights(DRAFT_SKY_LIGHTS))))
+                                 lights=view_data.sky_strata(DRAFT_SKY_LIGHTS))))
     app.set_lighting("key")
     assert app.lighting_select.value == "key light + environment"
     app.set_parameter(0, "ggx.alpha", 0.2)
     np.testing.assert_array_equal(app.sphere_source.data["image"][0], key)
     with pytest.raises(InputError, match="lighting 'sun'"):
         app.set_lighting("sun")
+
+
+def test_the_explorer_lights_its_previews_with_a_users_map(tmp_path):
+    from brdf.viz.explorer import DRAFT_SKY_LIGHTS, SKY_LIGHTS, SPHERE_SIZE, Explorer
+    path = _write_exr(tmp_path / "lamps.exr", _two_lamps())
+    app = Explorer([SPEC], environment=path)
+    assert app.lighting == "map" and app.lighting_select.value == "map: lamps.exr"
+    lamps = view_data.environment_map(path)
+    model = app.materials[0].model
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_preview(model, SPHERE_SIZE,
+                                 lights=view_data.map_strata(lamps, SKY_LIGHTS))))
+    app.refine_thread.join(120)
+    assert app.sphere.title.text == "lit sphere (path traced, 64 spp)"
+    np.testing.assert_array_equal(app.sphere_source.data["image"][0], view_data.to_rgba(
+        view_data.sphere_render(model, SPHERE_SIZE, 64, lighting=lamps)))
+    app.set_parameter(0, "ggx.alpha", 0.3, draft=True)
+    np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
+        view_data.object_preview(app.materials[0].model, 64,
+                                 lights=view_data.map_strata(lamps, DRAFT_SKY_LIGHTS))))
+    # a bad upload: the library's line (less the uploads' folder), the map stays
+    negative = _two_lamps()
+    negative[0, 0, 0] = -1.0
+    bad = _write_exr(tmp_path / "bad.exr", negative)
+    assert app.upload_environment("bad.exr", bad.read_bytes()) is False
+    assert app.error.object == ("bad.exr:row 0, column 0: environment map: radiance -1 is "
+                                "negative (expected >= 0)")
+    assert app.lighting == "map" and app.environment_label == "lamps.exr"
+    assert app.upload_environment("sky.exr", _write_exr(tmp_path / "s.exr", view_data.sky_map())
+                                  .read_bytes()) and not app.error.visible
+    assert app.lighting_select.options[-1] == "map: sky.exr"
+    app.lighting_select.value = "key light + environment"
+    assert app.lighting == "key"
+    with pytest.raises(InputError, match="lighting 'sun'"):
+        Explorer([SPEC]).set_lighting("sun")
+
+
+def test_the_slice_colours_step_in_quarter_decades():
+    from brdf.viz.explorer import SLICE_DECADES, Explorer
+    app = Explorer(["ggx(alpha=0.2)"])
+    app.refine = False
+    peak = np.nanmax(view_data.slice_image(app.materials[0].model, 90.0, 90).mean(-1))
+    high = app.slice_mapper.high
+    # the top of the colours: the peak rounded up to the next quarter decade
+    assert peak <= high < peak * 10 ** 0.25 and abs(4 * math.log10(high) - round(
+        4 * math.log10(high))) < 1e-9
+    assert app.slice_mapper.low == pytest.approx(high * 10 ** -SLICE_DECADES)
+    # a move that keeps the peak within its step leaves the range (and the page's colour
+    # bar) alone: over 40 moves, a change only where the step (computed here) changes
+    changes = []
+    app.slice_mapper.on_change("high", lambda attr, old, new: changes.append(new))
+    steps, last = [], math.ceil(4 * math.log10(high) - 1e-9)
+    for alpha in np.linspace(0.2, 0.3, 40)[1:]:
+        app.set_parameter(0, "ggx.alpha", alpha)
+        peak = np.nanmax(view_data.slice_image(app.materials[0].model, 90.0, 90).mean(-1))
+        step = math.ceil(4 * math.log10(peak) - 1e-9)
+        if step != last:
+            steps.append(10 ** (step / 4))
+        last = step
+    np.testing.assert_allclose(changes, steps, rtol=1e-9)
+    assert 0 < len(changes) <= 4
 
 
 def test_the_slice_shows_the_material_chosen_in_its_list():
@@ -775,6 +943,20 @@ def test_page_in_a_headless_browser(tmp_path):
         sky[0].click()
         _wait(lambda: app.lighting == "sky" and _sphere(driver) != before[0]
               and _object(driver) != before[1])
+        # a map uploaded in the page: a bad one refused with its line, then a good one lights
+        # the previews
+        maps = [e for e in driver.execute_script(_DEEP, "input[type=file]")
+                if e.get_attribute("accept") == ".exr"]
+        negative = _two_lamps()
+        negative[1, 2, 0] = -1.0
+        maps[0].send_keys(str(_write_exr(tmp_path / "neg.exr", negative)))
+        _wait(lambda: "is negative" in _text(driver) and app.error.visible)
+        assert app.error.object.startswith("neg.exr:row 1, column 2") and app.lighting == "sky"
+        before = _sphere(driver)
+        maps[0].send_keys(str(_write_exr(tmp_path / "lamps.exr", _two_lamps())))
+        _wait(lambda: app.lighting == "map" and _sphere(driver) != before
+              and "map: lamps.exr" in _text(driver))
+        assert not app.error.visible
         severe = [e for e in driver.get_log("browser") if e["level"] == "SEVERE"]
         assert not severe, severe
     finally:
@@ -812,6 +994,15 @@ def test_cli_refuses_a_bad_spec_before_serving():
     out, err = done.communicate(timeout=120)
     assert done.returncode == 2 and out == ""
     assert err.startswith("brdf-fit: error: ") and "bounds" in err and err.count("\n") == 1
+
+
+def test_cli_refuses_a_bad_environment_map_before_serving(tmp_path):
+    square = _write_exr(tmp_path / "square.exr", np.ones((8, 8, 3)))
+    done = _brdf_fit("explore", "ggx", "--environment", str(square), "--no-browser")
+    out, err = done.communicate(timeout=120)
+    assert done.returncode == 2 and out == ""
+    assert err == (f"brdf-fit: error: {square}: environment map: expected a lat-long map twice "
+                   "as wide as high, got 8 x 8 pixels\n")
 
 
 @pytest.mark.timeout(180)
