@@ -25,7 +25,8 @@ from numba import prange
 
 from .._jit import inline_kernel, kernel, parallel_kernel
 from ..errors import InputError, ParameterError
-from ..models._kernels import lobe_eval_block, lobe_grad_dot
+from ..models._kernels import (lobe_derivatives, lobe_eval_block, lobe_grad_rows,
+                                stack_array, with_last_axis)
 from ..models.base import Component, Param, Sum
 from . import losses
 
@@ -231,6 +232,14 @@ class Problem:
         self._needed = np.zeros(len(self._packed), dtype=np.bool_)
         for p in self.free:
             self._needed[p.slots] = True
+        # the one channel each packed entry acts on (an entry of a per-channel parameter: the
+        # model's channels are independent, see the class notes), or -1
+        self._chan = np.full(len(self._packed), -1, dtype=np.int64)
+        for lobe in self._slots:
+            for positions in lobe.values():
+                if len(positions) == nch > 1:
+                    for c, slots in enumerate(positions):
+                        self._chan[slots] = c
         per_sample = 8 * len(self._packed) * nch
         self._gradient_block = int(np.clip(GRADIENT_BLOCK_BYTES // per_sample,
                                            MIN_GRADIENT_BLOCK, GRADIENT_BLOCK))
@@ -475,8 +484,9 @@ class Problem:
         blocks = -(-len(s.wi) // block)
         loss = np.zeros((blocks, self.channels))
         dq = np.zeros((blocks, len(params)))
-        _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self.channels,
-                            s.wi, s.wo, t.scale, t.target, t.weight, t.offset, block, loss, dq)
+        _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self._chan,
+                            self.channels, s.wi, s.wo, t.scale, t.target, t.weight, t.offset,
+                            block, loss, dq)
         grad = self._in_x(dq.sum(axis=0) / t.norm, x)
         return float(loss.sum(axis=0).sum() / t.norm), grad
 
@@ -591,72 +601,162 @@ def _score_sums(f, scale, target, weight, offset, block, out):
 
 
 @parallel_kernel
-def _loss_gradient_sums(kinds, offs, params, needed, nch, wi, wo, scale, target, weight, offset,
-                        block, loss, grad):
+def _loss_gradient_sums(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
+                        offset, block, loss, grad):
     """For the one packed parameter vector ``params``: ``loss[b, c]`` as in :func:`_loss_sums`,
     and ``grad[b, j]`` = its derivative, summed over channels, in ``params[j]`` for each j with
-    ``needed[j]``.
+    ``needed[j]`` (``chan[j]``: the one channel that params[j] acts on, or -1).
 
     The blocks run in groups of :data:`GRADIENT_GROUP`, each group with one set of work arrays
-    (the derivatives' array, zeroed once: see brdf.models._kernels.lobe_grad_dot). The sums of
-    a block do not depend on its group.
+    (see :func:`_group_loss_gradient`). The sums of a block do not depend on its group.
     """
     n = wi.shape[0]
     npar = params.shape[0]
     blocks = loss.shape[0]
+    fast = nch == 3 and npar <= SLOTS
+    rows = 0 if fast else block  # the other channel counts' work arrays (on the heap)
     for g in prange((blocks + GRADIENT_GROUP - 1) // GRADIENT_GROUP):
-        f = np.empty((block, nch))
-        fs = np.empty((block, nch))
-        ds = np.zeros((npar, block, nch))
-        for b in range(g * GRADIENT_GROUP, min(blocks, (g + 1) * GRADIENT_GROUP)):
-            lo = b * block
-            hi = min(n, lo + block)
-            if hi - lo < block:  # the last block, shorter
-                f = np.empty((hi - lo, nch))
-                fs = np.empty((hi - lo, nch))
-                ds = np.zeros((npar, hi - lo, nch))
-            _block_loss_gradient(kinds, offs, params, needed, nch, wi[lo:hi], wo[lo:hi],
-                                 scale[lo:hi], target[lo:hi], weight[lo:hi], offset, f, fs, ds,
-                                 loss[b], grad[b])
+        b0 = g * GRADIENT_GROUP
+        b1 = min(blocks, b0 + GRADIENT_GROUP)
+        lo, hi = b0 * block, min(n, b1 * block)
+        fs = np.empty((rows, nch))
+        ds = np.zeros((npar, rows, nch))
+        _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi[lo:hi], wo[lo:hi],
+                             scale[lo:hi], target[lo:hi], weight[lo:hi], offset, block,
+                             loss[b0:b1], grad[b0:b1], fs, ds)
 
 
-@kernel
-def _block_loss_gradient(kinds, offs, params, needed, nch, wi, wo, scale, target, weight,
-                         offset, f, fs, ds, loss, grad):
-    """One block of :func:`_loss_gradient_sums`: ``loss[c]`` and ``grad[j]`` on the samples
-    ``wi``, ``wo`` (m rows), with work arrays ``f``, ``fs`` (m, C) and ``ds`` (P, m, C).
+#: Rows of a sub-block of :func:`_group_loss_gradient` and the packed parameters its work
+#: space on the stack holds (16 x 64 x 3 doubles of derivatives, 24 kB: in the first-level
+#: cache with the rows it reads).
+SUB_ROWS, SLOTS = 64, 16
 
-    f is evaluated first; then the chain rule through the terms: the derivative of
-    w (g(s f) - t)^2 in f is 2 w r g'(s f) s, with r = g(s f) - t and g' = 1, or
-    1 / (offset + s f) for g = log(offset + .); times df/dq_j from each lobe's ``grad_``
-    kernel (brdf.models._kernels.lobe_grad_dot).
-    """
-    m = wi.shape[0]
-    for k in range(m):
-        for c in range(nch):
-            f[k, c] = 0.0
-    for l in range(kinds.shape[0]):
-        lobe_eval_block(kinds[l], params[offs[l]:offs[l + 1]], nch, wi, wo, f)
-    # f becomes dL/df once scored
-    for c in range(nch):
-        acc = 0.0
-        if offset > 0.0:
-            for k in range(m):
+
+@inline_kernel
+def _residual_weights(f, scale, target, weight, offset, m, acc, g):
+    """Add weight_k (g(s f) - t)^2 of each sample k < m and channel c to ``acc[k, c]`` and set
+    ``g[k, c]`` to its derivative in f, 2 w r g'(s f) s, with r = g(s f) - t and g' = 1, or
+    1 / (offset + s f) for g = log(offset + .) (brdf.fitting.losses.Terms). The test of the
+    offset stands outside the loops, which then vectorise."""
+    if offset > 0.0:
+        for k in range(m):
+            for c in range(3):
                 s = scale[k, c]
                 v = offset + s * f[k, c]
                 r = math.log(v) - target[k, c]
-                acc += weight[k] * r * r
-                f[k, c] = 2.0 * weight[k] * r * s / v
-        else:
-            for k in range(m):
+                acc[k, c] += weight[k] * r * r
+                g[k, c] = 2.0 * weight[k] * r * s / v
+    else:
+        for k in range(m):
+            for c in range(3):
                 s = scale[k, c]
                 r = s * f[k, c] - target[k, c]
-                acc += weight[k] * r * r
-                f[k, c] = 2.0 * weight[k] * r * s
-        loss[c] = acc
-    for j in range(grad.shape[0]):
-        grad[j] = 0.0
-    for l in range(kinds.shape[0]):
-        a, b = offs[l], offs[l + 1]
-        lobe_grad_dot(kinds[l], params[a:b], nch, wi, wo, f, needed[a:b], grad[a:b], fs,
-                      ds[a:b])
+                acc[k, c] += weight[k] * r * r
+                g[k, c] = 2.0 * weight[k] * r * s
+
+
+@kernel
+def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
+                         offset, block, loss, grad, fs, ds):
+    """Blocks of :func:`_loss_gradient_sums` (``block`` rows each, from the first row of
+    ``wi``): ``loss[b, c]`` and ``grad[b, j]``.
+
+    One pass per lobe gives f with its derivatives df/dq_j (each family's ``grad_`` kernel:
+    one evaluation of each formula), then the chain rule through the terms
+    (:func:`_residual_weights`) times df/dq_j. With three channels and at most SLOTS packed
+    parameters that runs on SUB_ROWS rows at a time in work space on the stack, where LLVM
+    knows that the stores alias none of the inputs and vectorises the loops over rows; the
+    sums run per row (each row's terms added apart, reduced at the end of the block), so
+    they keep no chain of dependent additions, and a parameter of one channel (``chan[j]``
+    >= 0) is multiplied with that channel's derivatives only. Other models go one pair at
+    a time through the work arrays ``fs`` (block, C) and ``ds`` (P, block, C), ``ds`` zeroed
+    (every family's ``grad_`` sets the same entries at every pair, so the others stay 0).
+    """
+    n = wi.shape[0]
+    npar = params.shape[0]
+    if nch == 3 and npar <= SLOTS:
+        f = stack_array(1, SUB_ROWS, 3)[0]
+        g = stack_array(1, SUB_ROWS, 3)[0]
+        acc = stack_array(1, SUB_ROWS, 3)[0]
+        d = stack_array(SLOTS, SUB_ROWS, 3)
+        dacc = stack_array(SLOTS, SUB_ROWS, 1)
+        for j in range(npar):  # zeroed once: every pass sets the same entries again
+            for c in range(3):
+                for k in range(SUB_ROWS):
+                    d[j, k, c] = 0.0
+        for b in range(loss.shape[0]):
+            for c in range(3):
+                for k in range(SUB_ROWS):
+                    acc[k, c] = 0.0
+            for j in range(npar):
+                for k in range(SUB_ROWS):
+                    dacc[j, k, 0] = 0.0
+            end = min(n, (b + 1) * block)
+            for lo in range(b * block, end, SUB_ROWS):
+                m = min(end - lo, SUB_ROWS)
+                for c in range(3):
+                    for k in range(m):
+                        f[k, c] = 0.0
+                a = with_last_axis(wi[lo:lo + m], 3)
+                e = with_last_axis(wo[lo:lo + m], 3)
+                for l in range(kinds.shape[0]):
+                    lobe_grad_rows(kinds[l], params[offs[l]:offs[l + 1]], 3, a, e, f,
+                                   d[offs[l]:offs[l + 1]])
+                s = with_last_axis(scale[lo:lo + m], 3)
+                t = with_last_axis(target[lo:lo + m], 3)
+                w = weight[lo:lo + m]
+                _residual_weights(f, s, t, w, offset, m, acc, g)
+                for j in range(npar):
+                    if needed[j]:
+                        c = chan[j]
+                        if c >= 0:
+                            for k in range(m):
+                                dacc[j, k, 0] += g[k, c] * d[j, k, c]
+                        else:
+                            for k in range(m):
+                                dacc[j, k, 0] += (g[k, 0] * d[j, k, 0] + g[k, 1] * d[j, k, 1]
+                                                  + g[k, 2] * d[j, k, 2])
+            for c in range(3):
+                total = 0.0
+                for k in range(SUB_ROWS):
+                    total += acc[k, c]
+                loss[b, c] = total
+            for j in range(npar):
+                total = 0.0
+                for k in range(SUB_ROWS):
+                    total += dacc[j, k, 0]
+                grad[b, j] = total
+        return
+    for b in range(loss.shape[0]):  # one pair at a time (see lobe_eval_block)
+        lo = b * block
+        m = min(n - lo, block)
+        for k in range(m):
+            for c in range(nch):
+                fs[k, c] = 0.0
+        for l in range(kinds.shape[0]):
+            q = params[offs[l]:offs[l + 1]]
+            for k in range(m):
+                lobe_derivatives(kinds[l], q, nch, wi[lo + k, 0], wi[lo + k, 1], wi[lo + k, 2],
+                                 wo[lo + k, 0], wo[lo + k, 1], wo[lo + k, 2], fs, k,
+                                 ds[offs[l]:offs[l + 1]])
+        for c in range(nch):
+            total = 0.0
+            for k in range(m):
+                r = 0.0
+                s = scale[lo + k, c]
+                if offset > 0.0:
+                    v = offset + s * fs[k, c]
+                    r = math.log(v) - target[lo + k, c]
+                    fs[k, c] = 2.0 * weight[lo + k] * r * s / v
+                else:
+                    r = s * fs[k, c] - target[lo + k, c]
+                    fs[k, c] = 2.0 * weight[lo + k] * r * s
+                total += weight[lo + k] * r * r
+            loss[b, c] = total
+        for j in range(npar):
+            total = 0.0
+            if needed[j]:
+                for k in range(m):
+                    for c in range(nch):
+                        total += fs[k, c] * ds[j, k, c]
+            grad[b, j] = total

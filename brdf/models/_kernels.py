@@ -585,58 +585,6 @@ def stack_array(typingctx, n0, n1, n2):
     return array(n0, n1, n2), codegen
 
 
-#: Rows and packed parameters of the work space of :func:`lobe_grad_dot` (on the stack).
-SCRATCH_ROWS, SCRATCH_SLOTS = 128, 16
-
-
-@kernel
-def lobe_grad_dot(kind, q, nch, wi, wo, g, needed, dq, fs, ds):
-    """Add to ``dq[j]``, for each j with ``needed[j]``, the sum over the rows k of ``wi``, ``wo``
-    (m, 3) and channels c of g[k, c] df_c / dq_j (f the lobe, q its packed parameters): the last
-    step of the chain rule of a loss whose derivatives in f are ``g`` (m, nch).
-
-    With three channels and at most SCRATCH_SLOTS parameters the family's derivatives go to
-    work space on the stack, SCRATCH_ROWS rows at a time: LLVM then knows that its stores alias
-    none of its inputs and vectorises the loop over rows, which runtime checks of every array
-    against the others kept scalar (see also :func:`lobe_eval_block`). Otherwise they go to
-    the caller's work arrays ``fs`` (m, nch) and ``ds`` (P, m, nch), ``ds`` zeroed (every
-    family's ``grad_`` sets the same entries at every pair, so the others stay 0)."""
-    m = wi.shape[0]
-    npar = q.shape[0]
-    if nch == 3 and npar <= SCRATCH_SLOTS:
-        fo = stack_array(1, SCRATCH_ROWS, 3)[0]
-        dd = stack_array(SCRATCH_SLOTS, SCRATCH_ROWS, 3)
-        # zeroed once: each sub-block sets the same entries again (see the docstring)
-        for j in range(npar):
-            if needed[j]:
-                for c in range(3):
-                    for k in range(SCRATCH_ROWS):
-                        dd[j, k, c] = 0.0
-        for lo in range(0, m, SCRATCH_ROWS):
-            r = min(m - lo, SCRATCH_ROWS)
-            lobe_grad_rows(kind, q, 3, with_last_axis(wi[lo:lo + r], 3),
-                           with_last_axis(wo[lo:lo + r], 3), fo, dd)
-            gb = with_last_axis(g[lo:lo + r], 3)
-            for j in range(npar):
-                if needed[j]:
-                    acc = 0.0
-                    for c in range(3):
-                        for k in range(r):
-                            acc += gb[k, c] * dd[j, k, c]
-                    dq[j] += acc
-        return
-    for k in range(m):  # one pair at a time (see lobe_eval_block)
-        lobe_derivatives(kind, q, nch, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1],
-                         wo[k, 2], fs, k, ds)
-    for j in range(npar):
-        if needed[j]:
-            acc = 0.0
-            for k in range(m):
-                for c in range(nch):
-                    acc += g[k, c] * ds[j, k, c]
-            dq[j] += acc
-
-
 #: Rows per block of :func:`eval_array`: a block of wi, wo and out (12 kB) stays in the
 #: first-level cache while each lobe in turn adds to it.
 ROWS = 256

@@ -81,8 +81,10 @@ class BeckmannModel(Microfacet):
 
 @kernel
 def ndf_d(dist, ax, ay, hx, hy, hz):
-    """Normal distribution D(h) in 1/sr (integral of D cos = 1) and its partial derivatives in
-    alpha_x and alpha_y; h need not be normalised."""
+    """Normal distribution D(h) in 1/sr (integral of D cos = 1) and its logarithmic partial
+    derivatives in alpha_x and alpha_y as numerators over a common denominator,
+    ``(D, n_x, n_y, den)`` with d ln D / d alpha = n / den, so that a caller adding other
+    logarithmic derivatives divides once for all of them; h need not be normalised."""
     hh = hx * hx + hy * hy + hz * hz
     sx = hx / ax
     sy = hy / ay
@@ -90,11 +92,11 @@ def ndf_d(dist, ax, ay, hx, hy, hz):
         t = sx * sx + sy * sy + hz * hz
         d = hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
         # eq. 85 differentiated: d ln D / d alpha_x = (4 s_x^2 / t - 1) / alpha_x
-        return d, d * (4.0 * sx * sx / t - 1.0) / ax, d * (4.0 * sy * sy / t - 1.0) / ay
+        return d, (4.0 * sx * sx - t) / ax, (4.0 * sy * sy - t) / ay, t
     hz2 = hz * hz
     d = math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
     # eq. 84 differentiated: d ln D / d alpha_x = (2 s_x^2 / h_z^2 - 1) / alpha_x
-    return d, d * (2.0 * sx * sx / hz2 - 1.0) / ax, d * (2.0 * sy * sy / hz2 - 1.0) / ay
+    return d, (2.0 * sx * sx - hz2) / ax, (2.0 * sy * sy - hz2) / ay, hz2
 
 
 @kernel
@@ -130,17 +132,9 @@ def smith_lambda(dist, ax, ay, x, y, z):
 
 
 @kernel
-def ggx_root_d(ax, ay, x, y, z):
-    """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z),
-    and its partial derivatives in alpha_x and alpha_y."""
-    r = math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)
-    return r, ax * x * x / r, ay * y * y / r  # the root of Heitz 2014, eq. 86, differentiated
-
-
-@kernel
 def ggx_root(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z)."""
-    return ggx_root_d(ax, ay, x, y, z)[0]
+    return math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)  # Heitz 2014, eq. 86
 
 
 @kernel
@@ -153,33 +147,39 @@ def g1(dist, ax, ay, x, y, z):
 
 @kernel
 def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
-    """G2 / (4 cos_i cos_o) for directions above the horizon, and its partial derivatives in
-    alpha_x and alpha_y.
+    """G2 / (4 cos_i cos_o) for directions above the horizon, and its logarithmic partial
+    derivatives in alpha_x and alpha_y as numerators over a common denominator (as
+    :func:`ndf_d`): ``(v, m_x, m_y, den)``.
 
     For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
     1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
     """
     if dist == GGX:
-        ri, ri_x, ri_y = ggx_root_d(ax, ay, ix, iy, iz)
-        ro, ro_x, ro_y = ggx_root_d(ax, ay, ox, oy, oz)
+        ri = ggx_root(ax, ay, ix, iy, iz)
+        ro = ggx_root(ax, ay, ox, oy, oz)
+        # d root / d alpha_x = alpha_x x^2 / root (the root of Heitz 2014, eq. 86)
         if separable:
             v = 1.0 / ((iz + ri) * (oz + ro))
             # Walter et al. 2007, eq. 34 (G1 of each side) differentiated:
             # d ln v = -d root_i / (z_i + root_i) - d root_o / (z_o + root_o)
-            return (v, -v * (ri_x / (iz + ri) + ro_x / (oz + ro)),
-                    -v * (ri_y / (iz + ri) + ro_y / (oz + ro)))
+            p = ri * (iz + ri)
+            r = ro * (oz + ro)
+            return (v, -ax * (ix * ix * r + ox * ox * p), -ay * (iy * iy * r + oy * oy * p),
+                    p * r)
         s = ri * oz + ro * iz
         v = 0.5 / s  # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86); d ln v = -d s / s
-        return v, -v * (ri_x * oz + ro_x * iz) / s, -v * (ri_y * oz + ro_y * iz) / s
+        return (v, -ax * (ix * ix * oz * ro + ox * ox * iz * ri),
+                -ay * (iy * iy * oz * ro + oy * oy * iz * ri), ri * ro * s)
     li, li_x, li_y = smith_lambda_d(dist, ax, ay, ix, iy, iz)
     lo, lo_x, lo_y = smith_lambda_d(dist, ax, ay, ox, oy, oz)
     if separable:
         v = 1.0 / ((1.0 + li) * (1.0 + lo)) / (4.0 * iz * oz)  # Heitz 2014, eq. 98
-        return (v, -v * (li_x / (1.0 + li) + lo_x / (1.0 + lo)),
-                -v * (li_y / (1.0 + li) + lo_y / (1.0 + lo)))
+        # d ln v = -d Lambda_i / (1 + Lambda_i) - d Lambda_o / (1 + Lambda_o)
+        return (v, -(li_x * (1.0 + lo) + lo_x * (1.0 + li)),
+                -(li_y * (1.0 + lo) + lo_y * (1.0 + li)), (1.0 + li) * (1.0 + lo))
     s = 1.0 + li + lo
     v = 1.0 / s / (4.0 * iz * oz)  # eq. 99
-    return v, -v * (li_x + lo_x) / s, -v * (li_y + lo_y) / s
+    return v, -(li_x + lo_x), -(li_y + lo_y), s
 
 
 @kernel
@@ -370,17 +370,23 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
 def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
     """The channel-free factor D G2 / (4 cos_i cos_o) of f (0 unless both directions are above
     the horizon), its partial derivatives in alpha_x and alpha_y, and the unnormalised half
-    vector; ``eval_`` and ``grad_`` both build f from it."""
+    vector; ``eval_`` and ``grad_`` both build f from it.
+
+    The derivatives are f times the sum of the logarithmic derivatives of D and of G2 / (4
+    cos_i cos_o), each a fraction (:func:`ndf_d`, :func:`visibility_d`): over their common
+    denominator, one division serves both (the divisions bounded the gradient pass)."""
     ax = q[nch]
     ay = q[nch + 1]
     hx = ix + ox
     hy = iy + oy
     hz = iz + oz
-    d, d_x, d_y = ndf_d(dist, ax, ay, hx, hy, hz)
-    v, v_x, v_y = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy, oz)
+    d, n_x, n_y, den = ndf_d(dist, ax, ay, hx, hy, hz)
+    v, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy, oz)
+    f = d * v
+    u = f / (den * den_v)
     above = iz > 0.0 and oz > 0.0  # selects, not branches: keep the loops vectorised
-    return (d * v if above else 0.0, (d_x * v + d * v_x) if above else 0.0,
-            (d_y * v + d * v_y) if above else 0.0, hx, hy, hz)
+    return (f if above else 0.0, ((n_x * den_v + m_x * den) * u) if above else 0.0,
+            ((n_y * den_v + m_y * den) * u) if above else 0.0, hx, hy, hz)
 
 
 @kernel

@@ -95,6 +95,44 @@ def test_gradient_matches_a_slow_reference(rgb_table, spec, loss):
     assert np.abs(grad - ref).max() <= 1e-5 * np.abs(ref).max()
 
 
+def per_pair_loss_and_gradient(p, x):
+    """The loss and its gradient from the per-pair derivatives of ``grad_array`` (a kernel of
+    its own, one pair at a time) and the chain rule in numpy, summed in another order."""
+    from brdf.models import _kernels
+    s, t = p.samples, p.terms
+    params = p.packed(x)[0]
+    f = np.zeros(s.values.shape)
+    d = np.zeros((len(params),) + f.shape)
+    _kernels.grad_array(p._kinds, p._offsets, params, p.channels, s.wi, s.wo, f, d)
+    g = np.log(t.offset + t.scale * f) if t.offset > 0.0 else t.scale * f
+    r = g - t.target
+    dg = 1.0 / (t.offset + t.scale * f) if t.offset > 0.0 else 1.0
+    dl = 2.0 * t.weight[:, None] * r * t.scale * dg
+    value = float((t.weight[:, None] * r * r).sum() / t.norm)
+    return value, p._in_x(np.einsum("kc,jkc->j", dl, d) / t.norm, x)
+
+
+# RGB models of at most 16 packed parameters take the pass on the stack, others the heap's
+@pytest.mark.parametrize("spec,loss,shared", [(SPECS[0], "cosine-l2", ("lambert.albedo",)),
+                                               (SPECS[1], "log", ()), (SPECS[2], "l2", ("ks",)),
+                                               (SPECS[0] + " + beckmann", "relative-l2", ())])
+def test_loss_gradient_pass_agrees_with_per_pair_derivatives(rgb_table, spec, loss, shared):
+    import numba
+    p = Problem(rgb_table, spec, loss=loss, shared=shared)
+    x = p.x0 + 0.2 * (p.random_x(np.random.default_rng(2), 1)[0] - p.x0)
+    value, grad = p.loss_and_gradient(x)
+    ref_value, ref_grad = per_pair_loss_and_gradient(p, x)
+    assert value == pytest.approx(ref_value, rel=1e-12)
+    assert np.all(np.abs(grad - ref_grad) <= 1e-12 * np.abs(ref_grad).max()), (grad, ref_grad)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:  # the same bits on one thread: the blocks' sums are added in a fixed order
+        again = p.loss_and_gradient(x)
+    finally:
+        numba.set_num_threads(threads)
+    assert again[0] == value and np.array_equal(again[1], grad)
+
+
 def test_difference_rows_stay_inside_the_bounds(rgb_table):
     p = Problem(rgb_table, "lambert(albedo=0) + ggx(alpha=0.3)")  # albedo at its lower bound
     rows, width = p.difference_rows(p.x0)
