@@ -56,10 +56,10 @@ HORIZON_MARGIN = 1e-9
 #
 # Each dispatcher below is a chain of ``if kind == K.NAME:`` tests, one per family of
 # ``K.FAMILIES`` (families whose code is the same share a test), written out as source
-# and compiled here: numba then inlines each family's kernel into its branch, as it did for
-# the hand-written chains, and caches the dispatchers like any kernel of this file (their
-# source is a function of this file, the table and the family modules, all in the cache
-# stamp). A hook receives the dispatcher's arguments of the same names; a first parameter of
+# and compiled here: LLVM then inlines each family's kernel into its branch (see
+# ``brdf._jit.inline_kernel``), and numba caches the dispatchers like any kernel of this file
+# (their source is a function of this file, the table and the family modules, all in the
+# cache stamp). A hook receives the dispatcher's arguments of the same names; a first parameter of
 # another name (``dist``, ``form``) receives the row's variant. ``DISPATCH_SOURCE`` holds the
 # generated source.
 #
