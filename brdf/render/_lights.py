@@ -117,7 +117,8 @@ def _atan2(y, x):
 def _env_pixel(lights, x, y, z):
     """Row and column of the equirectangular map's pixel holding direction (x, y, z) in the
     map's frame, with Mitsuba 3's envmap layout (u = atan2(x, -z) / 2 pi, v = acos(y) / pi,
-    row 0 at the top), and sin(theta) = sqrt(1 - y^2).
+    row 0 at the top), sin(theta) = sqrt(1 - y^2), and u and v themselves (from the
+    polynomials, for :func:`_env_bilinear`).
 
     The angles come from polynomials (:func:`_acos`, :func:`_atan2`: libm's arctangent,
     arccosine and sine were most of a lookup's time), and the pixel is then settled exactly
@@ -126,7 +127,8 @@ def _env_pixel(lights, x, y, z):
     sin of 2 pi j / w), the side of an edge that (-z, x) lies on being a cross product's sign."""
     h, w = lights.env.shape[0], lights.env.shape[1]
     ct, edge = lights.env_cos, lights.env_edge
-    i = min(int(_acos(y) * (h / math.pi)), h - 1)
+    theta = _acos(y)
+    i = min(int(theta * (h / math.pi)), h - 1)
     # the polynomial errs by far less than a row: a step to either side at most
     while i > 0 and y > ct[i]:
         i -= 1
@@ -139,23 +141,49 @@ def _env_pixel(lights, x, y, z):
         j = j - 1 if j > 0 else w - 1
     elif edge[j + 1, 0] * x + edge[j + 1, 1] * z >= 0.0:
         j = j + 1 if j < w - 1 else 0
-    return i, j, math.sqrt(max(0.0, (1.0 - y) * (1.0 + y)))
+    return (i, j, math.sqrt(max(0.0, (1.0 - y) * (1.0 + y))),
+            (phi if phi >= 0.0 else phi + 2.0 * math.pi) / (2.0 * math.pi), theta / math.pi)
+
+
+@inline_kernel
+def _env_bilinear(env, u, v):
+    """The map's RGB at (u, v) (u = phi / 2 pi, periodic; v = theta / pi), bilinear between
+    pixels as Mitsuba 3's envmap emitter interpolates them (src/emitters/envmap.cpp,
+    eval_spectrum): pixel centres at u = (j + 1/2) / w, rows at v = i / (h - 1)."""
+    h, w = env.shape[0], env.shape[1]
+    x = u * w - 0.5
+    x0 = math.floor(x)
+    a = x - x0
+    j0 = int(x0) % w
+    j1 = j0 + 1 if j0 < w - 1 else 0
+    y = min(max(v, 0.0), 1.0) * (h - 1)
+    i0 = max(min(int(y), h - 2), 0)
+    i1 = min(i0 + 1, h - 1)
+    b = y - i0
+    c00, c01, c10, c11 = (1.0 - a) * (1.0 - b), a * (1.0 - b), (1.0 - a) * b, a * b
+    return (c00 * env[i0, j0, 0] + c01 * env[i0, j1, 0] + c10 * env[i1, j0, 0]
+            + c11 * env[i1, j1, 0],
+            c00 * env[i0, j0, 1] + c01 * env[i0, j1, 1] + c10 * env[i1, j0, 1]
+            + c11 * env[i1, j1, 1],
+            c00 * env[i0, j0, 2] + c01 * env[i0, j1, 2] + c10 * env[i1, j0, 2]
+            + c11 * env[i1, j1, 2])
 
 
 @inline_kernel
 def env_lookup(lights, e, dx, dy, dz):
-    """RGB radiance of environment light e along world direction d and the solid-angle density
-    of :func:`_sample_env` there, from one lookup of the map (:func:`_env_pixel`): uniform
-    over the sphere for a constant environment; for a map the pixel's probability over its
-    solid angle, p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed. 14.2.4, eq. 14.9's change of
-    variables)."""
+    """RGB radiance of environment light e along world direction d (bilinear in the map,
+    :func:`_env_bilinear`) and the solid-angle density of :func:`_sample_env` there: uniform
+    over the sphere for a constant environment; for a map the probability of the pixel holding
+    d (:func:`_env_pixel`) over its solid angle, p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed.
+    14.2.4, eq. 14.9's change of variables)."""
     f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         return f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     x, y, z = _env_local(f, dx, dy, dz)
-    i, j, s = _env_pixel(lights, x, y, z)
-    r, g, b = f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2]
+    i, j, s, u, v = _env_pixel(lights, x, y, z)
+    r, g, b = _env_bilinear(env, u, v)
+    r, g, b = f[3] * r, f[4] * g, f[5] * b
     if s <= 0.0:
         return r, g, b, 0.0
     p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
@@ -182,7 +210,8 @@ def _invert(cdf, guide, u):
 @inline_kernel
 def _sample_env(lights, e, u1, u2):
     """World direction drawn from environment light e, its radiance and its solid-angle
-    density (those of the drawn pixel, by :func:`env_lookup`'s formula)."""
+    density (by :func:`env_lookup`'s formulas: the map bilinear, the density the drawn
+    pixel's, piecewise constant)."""
     f, env, rows, cols = lights.lf[e], lights.env, lights.rows, lights.cols
     if f[0] == 0.0:
         z = 1.0 - 2.0 * u1
@@ -201,12 +230,13 @@ def _sample_env(lights, e, u1, u2):
     dx = f[6] * x + f[9] * y + f[12] * z
     dy = f[7] * x + f[10] * y + f[13] * z
     dz = f[8] * x + f[11] * y + f[14] * z
-    # the drawn pixel's radiance and density (env_lookup's formula), from (i, j) and sin theta
-    # as drawn: finding the pixel again from d cost an arctangent and an arccosine a sample
+    # radiance and density as env_lookup has them, from (i, j), (u, v) and sin theta as
+    # drawn: finding the pixel again from d cost an arctangent and an arccosine a sample
     if sin_t <= 0.0:
         return dx, dy, dz, 0.0, 0.0, 0.0, 0.0
+    r, g, b = _env_bilinear(env, (j + fv) / w, (i + fu) / h)
     p = (rows[i + 1] - rows[i]) * (cols[i, j + 1] - cols[i, j]) * h * w
-    return (dx, dy, dz, f[3] * env[i, j, 0], f[4] * env[i, j, 1], f[5] * env[i, j, 2],
+    return (dx, dy, dz, f[3] * r, f[4] * g, f[5] * b,
             p / (2.0 * math.pi * math.pi * sin_t))
 
 

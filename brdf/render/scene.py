@@ -687,12 +687,22 @@ def _env_frame(up):
 
 
 def _env_distribution(env):
-    """Row marginal and per-row conditional CDFs of luminance times sin(theta) over the map's
-    pixels (PBR 3rd ed. 14.2.4)."""
+    """Row marginal and per-row conditional CDFs over the map's pixels of sin(theta) times the
+    largest luminance the bilinear radiance (``_lights._env_bilinear``) takes in the pixel
+    (PBR 3rd ed. 14.2.4, with the bound in place of the pixel's value as pbrt-v4's
+    ImageInfiniteLight samples its filtered image): wherever the radiance is not zero
+    the density is not either, and it follows the radiance near bright pixels."""
     h, w, _ = env.shape
-    lum = env @ np.array([0.2126, 0.7152, 0.0722])
+    lum = np.maximum(env @ np.array([0.2126, 0.7152, 0.0722]), 0.0)
+    # in u the pixel's value spans its neighbours' halves (centres at (j + 1/2) / w) ...
+    lum = np.maximum(np.maximum(lum, np.roll(lum, 1, axis=1)), np.roll(lum, -1, axis=1))
+    # ... in v pixel row i spans theta / pi in [i / h, (i + 1) / h], between the map's rows
+    # floor(i (h - 1) / h) and the two next (the radiance's rows sit at k / (h - 1))
+    lo = (np.arange(h) * (h - 1)) // h
+    lum = np.maximum(np.maximum(lum[lo], lum[np.minimum(lo + 1, h - 1)]),
+                     lum[np.minimum(lo + 2, h - 1)])
     theta = (np.arange(h) + 0.5) / h * np.pi
-    p = np.maximum(lum, 0.0) * np.sin(theta)[:, None]
+    p = lum * np.sin(theta)[:, None]
     if p.sum() <= 0:
         p = np.sin(theta)[:, None] * np.ones((1, w))
     row = p.sum(axis=1)
