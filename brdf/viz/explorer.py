@@ -233,12 +233,17 @@ class Explorer:
     def _save_upload(self, filename, data):
         """Save ``data`` uploaded as ``filename`` under its own name in this explorer's folder
         of uploads; returns (path, the folder to hide in messages)."""
+        import shutil
         import tempfile
+        import weakref
         if self._uploads is None:
-            # removed with the explorer (and at exit): tables may read their file lazily
-            self._uploads = tempfile.TemporaryDirectory(prefix="brdf-explore-")
+            # removed with the explorer (and at exit): tables may read their file lazily. A
+            # TemporaryDirectory left to the collector warns (ResourceWarning) into whatever
+            # runs at that moment, so the folder is removed by a finaliser of our own
+            self._uploads = tempfile.mkdtemp(prefix="brdf-explore-")
+            weakref.finalize(self, shutil.rmtree, self._uploads, True)
         name = os.path.basename(str(filename or "").replace("\\", "/")) or "upload"
-        folder = tempfile.mkdtemp(dir=self._uploads.name)  # two uploads of one name coexist
+        folder = tempfile.mkdtemp(dir=self._uploads)  # two uploads of one name coexist
         path = os.path.join(folder, name)
         with open(path, "wb") as out:
             out.write(bytes(data or b""))
