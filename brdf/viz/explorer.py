@@ -195,12 +195,16 @@ class Explorer:
         except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
             if len(self.materials) > count:  # added, but its views cannot be drawn
                 self.remove(count)
-            message = _message(exc)
-            self.error.object = message.replace(hide, "") if hide else message
-            self.error.visible = True
-            return False
-        self.error.object, self.error.visible = "", False
-        return True
+            return self._show_error(exc, hide)
+        return self._show_error(None)
+
+    def _show_error(self, exc, hide=None):
+        """Show ``exc``'s one line in the page, less the text ``hide`` (None: clear the
+        message); returns whether there was none."""
+        message = "" if exc is None else _message(exc)
+        self.error.object = message.replace(hide, "") if hide else message
+        self.error.visible = exc is not None
+        return exc is None
 
     def upload(self, filename, data):
         """Add the measured file or JSON fit report ``data`` (bytes) uploaded from the browser
@@ -277,12 +281,8 @@ class Explorer:
         try:
             self.set_environment(path, label)
         except Exception as exc:  # noqa: BLE001  (any bad input becomes the page's message)
-            message = _message(exc)
-            self.error.object = message.replace(hide, "") if hide else message
-            self.error.visible = True
-            return False
-        self.error.object, self.error.visible = "", False
-        return True
+            return self._show_error(exc, hide)
+        return self._show_error(None)
 
     def upload_environment(self, filename, data):
         """Light the previews with the map ``data`` (bytes) uploaded as ``filename``, as
