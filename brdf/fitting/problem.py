@@ -620,10 +620,11 @@ def _loss_gradient_sums(kinds, offs, params, needed, chan, nch, wi, wo, scale, t
         b1 = min(blocks, b0 + GRADIENT_GROUP)
         lo, hi = b0 * block, min(n, b1 * block)
         fs = np.empty((rows, nch))
+        terms = np.empty((rows, nch))
         ds = np.zeros((npar, rows, nch))
         _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi[lo:hi], wo[lo:hi],
                              scale[lo:hi], target[lo:hi], weight[lo:hi], offset, block,
-                             loss[b0:b1], grad[b0:b1], fs, ds)
+                             loss[b0:b1], grad[b0:b1], fs, terms, ds)
 
 
 #: Rows of a sub-block of :func:`_group_loss_gradient` and the packed parameters its work
@@ -633,14 +634,14 @@ SUB_ROWS, SLOTS = 64, 16
 
 
 @inline_kernel
-def _residual_weights(f, scale, target, weight, offset, m, acc, g):
-    """Add weight_k (g(s f) - t)^2 of each sample k < m and channel c to ``acc[k, c]`` and set
-    ``g[k, c]`` to its derivative in f, 2 w r g'(s f) s, with r = g(s f) - t and g' = 1, or
-    1 / (offset + s f) for g = log(offset + .) (brdf.fitting.losses.Terms). The test of the
-    offset stands outside the loops, which then vectorise."""
+def _residual_weights(f, scale, target, weight, offset, m, nch, acc, g):
+    """Add weight_k (g(s f) - t)^2 of each sample k < m and channel c < nch to ``acc[k, c]``
+    and set ``g[k, c]`` to its derivative in f, 2 w r g'(s f) s, with r = g(s f) - t and
+    g' = 1, or 1 / (offset + s f) for g = log(offset + .) (brdf.fitting.losses.Terms); ``g``
+    may be ``f``. The test of the offset stands outside the loops, which then vectorise."""
     if offset > 0.0:
         for k in range(m):
-            for c in range(3):
+            for c in range(nch):
                 s = scale[k, c]
                 v = offset + s * f[k, c]
                 r = math.log(v) - target[k, c]
@@ -648,7 +649,7 @@ def _residual_weights(f, scale, target, weight, offset, m, acc, g):
                 g[k, c] = 2.0 * weight[k] * r * s / v
     else:
         for k in range(m):
-            for c in range(3):
+            for c in range(nch):
                 s = scale[k, c]
                 r = s * f[k, c] - target[k, c]
                 acc[k, c] += weight[k] * r * r
@@ -657,7 +658,7 @@ def _residual_weights(f, scale, target, weight, offset, m, acc, g):
 
 @kernel
 def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
-                         offset, block, loss, grad, fs, ds):
+                         offset, block, loss, grad, fs, terms, ds):
     """Blocks of :func:`_loss_gradient_sums` (``block`` rows each, from the first row of
     ``wi``): ``loss[b, c]`` and ``grad[b, j]``.
 
@@ -669,8 +670,9 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
     sums run per row (each row's terms added apart, reduced at the end of the block), so
     they keep no chain of dependent additions, and a parameter of one channel (``chan[j]``
     >= 0) is multiplied with that channel's derivatives only. Other models go one pair at
-    a time through the work arrays ``fs`` (block, C) and ``ds`` (P, block, C), ``ds`` zeroed
-    (every family's ``grad_`` sets the same entries at every pair, so the others stay 0).
+    a time through the work arrays ``fs``, ``terms`` (block, C) and ``ds`` (P, block, C),
+    ``ds`` zeroed (every family's ``grad_`` sets the same entries at every pair, so the
+    others stay 0).
     """
     n = wi.shape[0]
     npar = params.shape[0]
@@ -705,7 +707,7 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
                 s = with_last_axis(scale[lo:lo + m], 3)
                 t = with_last_axis(target[lo:lo + m], 3)
                 w = weight[lo:lo + m]
-                _residual_weights(f, s, t, w, offset, m, acc, g)
+                _residual_weights(f, s, t, w, offset, m, 3, acc, g)
                 for j in range(npar):
                     if needed[j]:
                         c = chan[j]
@@ -739,19 +741,16 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
                 lobe_derivatives(kinds[l], q, nch, wi[lo + k, 0], wi[lo + k, 1], wi[lo + k, 2],
                                  wo[lo + k, 0], wo[lo + k, 1], wo[lo + k, 2], fs, k,
                                  ds[offs[l]:offs[l + 1]])
+        for k in range(m):
+            for c in range(nch):
+                terms[k, c] = 0.0
+        # fs becomes dL/df
+        _residual_weights(fs, scale[lo:lo + m], target[lo:lo + m], weight[lo:lo + m], offset, m,
+                          nch, terms, fs)
         for c in range(nch):
             total = 0.0
             for k in range(m):
-                r = 0.0
-                s = scale[lo + k, c]
-                if offset > 0.0:
-                    v = offset + s * fs[k, c]
-                    r = math.log(v) - target[lo + k, c]
-                    fs[k, c] = 2.0 * weight[lo + k] * r * s / v
-                else:
-                    r = s * fs[k, c] - target[lo + k, c]
-                    fs[k, c] = 2.0 * weight[lo + k] * r * s
-                total += weight[lo + k] * r * r
+                total += terms[k, c]
             loss[b, c] = total
         for j in range(npar):
             total = 0.0
