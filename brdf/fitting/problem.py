@@ -656,6 +656,16 @@ def _residual_weights(f, scale, target, weight, offset, m, nch, acc, g):
                 g[k, c] = 2.0 * weight[k] * r * s
 
 
+@inline_kernel
+def _column_sums(x, m, out):
+    """Set ``out[c]`` to the sum of ``x[k, c]`` over the rows k < m, in row order."""
+    for c in range(out.shape[0]):
+        total = 0.0
+        for k in range(m):
+            total += x[k, c]
+        out[c] = total
+
+
 @kernel
 def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
                          offset, block, loss, grad, fs, terms, ds):
@@ -718,11 +728,7 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
                             for k in range(m):
                                 dacc[j, k, 0] += (g[k, 0] * d[j, k, 0] + g[k, 1] * d[j, k, 1]
                                                   + g[k, 2] * d[j, k, 2])
-            for c in range(3):
-                total = 0.0
-                for k in range(SUB_ROWS):
-                    total += acc[k, c]
-                loss[b, c] = total
+            _column_sums(acc, SUB_ROWS, loss[b])
             for j in range(npar):
                 total = 0.0
                 for k in range(SUB_ROWS):
@@ -747,11 +753,7 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
         # fs becomes dL/df
         _residual_weights(fs, scale[lo:lo + m], target[lo:lo + m], weight[lo:lo + m], offset, m,
                           nch, terms, fs)
-        for c in range(nch):
-            total = 0.0
-            for k in range(m):
-                total += terms[k, c]
-            loss[b, c] = total
+        _column_sums(terms, m, loss[b])
         for j in range(npar):
             total = 0.0
             if needed[j]:
