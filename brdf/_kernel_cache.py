@@ -91,24 +91,45 @@ def _runtime_ready(target_context):
         _runtime["ready"] = True
 
 
-def _arraymath_without_blas_probe():
-    """Import ``numba.np.arraymath`` without its import-time probe for BLAS.
+class _ArraymathWithoutBlasProbe:
+    """Import hook: ``numba.np.arraymath`` imports without its import-time probe for BLAS.
 
     A cached kernel that holds any of numba's array functions imports their module on load
     (to rebuild their environments), and ``numba.np.arraymath`` probes for BLAS on import by
     importing all of ``scipy.linalg``: 0.1-0.25 s of a render's start. scipy is a dependency of
     this package, so the probe's answer is known (BLAS is there); numba's linear algebra still
-    imports scipy's BLAS when a kernel using it compiles."""
-    if "numba.np.arraymath" in sys.modules:
-        return
-    from numba.np import linalg
-    probe = linalg.ensure_blas
-    linalg.ensure_blas = lambda: None
-    try:
-        from numba.np import arraymath
-    finally:
-        linalg.ensure_blas = probe
-    arraymath.ensure_blas = probe
+    imports scipy's BLAS when a kernel using it compiles. The hook waits for that import
+    (a ``check`` never makes it; importing the module ahead cost it 0.04 s) and then leaves
+    ``sys.meta_path``."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numba.np.arraymath":
+            return None
+        sys.meta_path.remove(self)
+        import importlib.util
+        spec = importlib.util.find_spec(name)
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            from numba.np import linalg
+            probe = linalg.ensure_blas
+            linalg.ensure_blas = lambda: None
+            try:
+                run(module)
+            finally:
+                linalg.ensure_blas = probe
+            module.ensure_blas = probe
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+def _arraymath_without_blas_probe():
+    """Have ``numba.np.arraymath`` import without its probe for BLAS when it first imports
+    (:class:`_ArraymathWithoutBlasProbe`)."""
+    if "numba.np.arraymath" not in sys.modules and not any(
+            isinstance(f, _ArraymathWithoutBlasProbe) for f in sys.meta_path):
+        sys.meta_path.insert(0, _ArraymathWithoutBlasProbe())
 
 
 class _QuickLoad(caching.FunctionCache):
