@@ -20,7 +20,10 @@ import os
 import re
 import sys
 
-from numba.core import caching
+import numpy as np
+from numba.core import caching, errors, types
+from numba.core.typing.typeof import Purpose, typeof
+from numba.np import numpy_support
 
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
 _JIT = os.path.join(_PACKAGE, "_jit.py")
@@ -142,9 +145,50 @@ class _QuickLoad(caching.FunctionCache):
             return self._load_overload(sig, target_context)
 
 
+def _argument_type(value):
+    """numba's type of a kernel's argument, with exact ``np.ndarray`` values (also within
+    tuples and named tuples) typed here (dtype, dimensions, layout, read-only flag); None where
+    numba's ``typeof`` has to say (an unsupported value, with its own error)."""
+    if isinstance(value, tuple):
+        items = [_argument_type(v) for v in value]
+        return None if None in items else types.BaseTuple.from_types(items, type(value))
+    if type(value) is np.ndarray:
+        try:
+            dtype = numpy_support.from_dtype(value.dtype)
+        except errors.NumbaNotImplementedError:
+            return None
+        return types.Array(dtype, value.ndim, numpy_support.map_layout(value),
+                           readonly=not value.flags.writeable)
+    if isinstance(value, np.ndarray):  # a subclass: a masked array, which numba refuses
+        return None
+    try:
+        return typeof(value, Purpose.argument)
+    except (errors.NumbaError, ValueError):
+        return None
+
+
+def _typing_arrays_directly(dispatcher):
+    """``dispatcher``, typing numpy array arguments (and tuples of them) itself rather than
+    through numba's ``typeof``, whose first array imports ``numpy.ma`` (15 ms of each
+    command's start) to refuse masked arrays: an exact ``np.ndarray`` is not one. Other values
+    go to ``typeof``."""
+    numba_typeof = dispatcher.typeof_pyval
+
+    def typeof_pyval(value):
+        t = _argument_type(value)
+        if t is None:
+            return numba_typeof(value)
+        dispatcher._types_active_call.add(t)  # as numba's typeof_pyval does
+        return t
+
+    dispatcher.typeof_pyval = typeof_pyval
+    return dispatcher
+
+
 def quick_loading(dispatcher):
     """``dispatcher`` (with ``cache=True``), loading its cached machine code without numba's
-    full set-up; returned as it is when it caches otherwise (another numba version's cache)."""
+    full set-up (and typing its array arguments without importing ``numpy.ma``); its cache
+    left as it is when it caches otherwise (another numba version's cache)."""
     if type(dispatcher._cache) is caching.FunctionCache:
         dispatcher._cache.__class__ = _QuickLoad
-    return dispatcher
+    return _typing_arrays_directly(dispatcher)
