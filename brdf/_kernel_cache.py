@@ -22,7 +22,7 @@ import sys
 
 import numpy as np
 from numba.core import caching, errors, types
-from numba.core.typing.typeof import Purpose, typeof
+from numba.core.typing.typeof import Purpose, typeof, typeof_impl
 from numba.np import numpy_support
 
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
@@ -145,11 +145,15 @@ class _QuickLoad(caching.FunctionCache):
             return self._load_overload(sig, target_context)
 
 
+#: numba's typing of tuples, named tuples and any tuple subclass without one of its own
+_TUPLE_TYPEOF = typeof_impl.dispatch(tuple)
+
+
 def _argument_type(value):
     """numba's type of a kernel's argument, with exact ``np.ndarray`` values (also within
     tuples and named tuples) typed here (dtype, dimensions, layout, read-only flag); None where
     numba's ``typeof`` has to say (an unsupported value, with its own error)."""
-    if isinstance(value, tuple):
+    if isinstance(value, tuple) and typeof_impl.dispatch(type(value)) is _TUPLE_TYPEOF:
         items = [_argument_type(v) for v in value]
         return None if None in items else types.BaseTuple.from_types(items, type(value))
     if type(value) is np.ndarray:
