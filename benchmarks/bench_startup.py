@@ -4,13 +4,17 @@ the Cornell box stage by stage, and (``--cold``) the first run after ``pip insta
 Run: ``python benchmarks/bench_startup.py [--repeats 5] [--cold]``
 
 Warm (the kernels in numba's disk cache): each command is timed as a fresh process, best and
-median of the repeats; the baselines are the bare interpreter (``python -c pass``) and, for the
+median of the repeats, in wall seconds and in CPU seconds (user + system, the steadier figure on
+a shared host); the baselines are the bare interpreter (``python -c pass``) and, for the
 render, the same render alone in a warm process (best of the repeats), both measured in the
 same run; ``import numpy, numba`` is the floor of any command that runs a kernel. Targets (issue 27): ``check`` of one model under 0.5 s, and the render's overhead
 (the command's wall time minus the render alone) under 0.3 s. The stages are timed inside the
 command's own code path (``brdf_cli.main.main`` with timers around the library calls it makes):
 python start (the bare interpreter), imports, argument parsing, scene compilation, kernel
-loading (the render's first call: numba's cache load), the render and the EXR write.
+loading (the render's first call: numba's cache load), the render and the EXR write. The
+package's bytecode is compiled first (``compileall``), as ``pip install`` does: with
+``PYTHONDONTWRITEBYTECODE`` set, an editable install otherwise compiles every module of the
+package from source in every process (0.1-0.15 s of each command on the 2-core host).
 
 ``--cold`` times, on a throwaway kernel cache (numba's own locator for ``NUMBA_CACHE_DIR``, the
 user's warm cache untouched): ``python -m brdf.precompile`` (all groups, its default 2
@@ -43,19 +47,39 @@ def _cli():
     return shutil.which("brdf-fit") or os.path.join(os.path.dirname(sys.executable), "brdf-fit")
 
 
+def _children_cpu():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def timed(cmd, repeats, env=None, overhead=False):
-    """``(best, median)`` wall seconds of ``repeats`` runs of ``cmd`` (exit status 0 or 1);
-    with ``overhead``, of the wall time minus the render's own ``seconds`` (``--json``)."""
-    times = []
+    """``(best, median, best CPU, median CPU)`` wall and CPU seconds of ``repeats`` runs of
+    ``cmd`` (exit status 0 or 1); with ``overhead``, wall seconds minus the render's own
+    ``seconds`` (``--json``), and no CPU figures (None)."""
+    times, cpus = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), _children_cpu()
         done = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
         times.append(time.perf_counter() - start)
+        cpus.append(_children_cpu() - cpu)
         if done.returncode not in (0, 1):
             raise SystemExit(f"{' '.join(cmd)}: exit {done.returncode}\n{done.stderr.decode()}")
         if overhead:
             times[-1] -= json.loads(done.stdout)["seconds"]
-    return min(times), statistics.median(times)
+    if overhead:
+        return min(times), statistics.median(times), None, None
+    return min(times), statistics.median(times), min(cpus), statistics.median(cpus)
+
+
+def compile_bytecode():
+    """Compile the bytecode of ``brdf`` and ``brdf_cli`` where it is missing or stale, as
+    ``pip install`` does; whether Python would have written it itself."""
+    import compileall
+    import brdf
+    import brdf_cli
+    for package in (brdf, brdf_cli):
+        compileall.compile_dir(os.path.dirname(package.__file__), quiet=1)
+    return not sys.flags.dont_write_bytecode
 
 
 # --- the render's stages, inside one command ---------------------------------------------------
@@ -63,7 +87,7 @@ def timed(cmd, repeats, env=None, overhead=False):
 def stages(out):
     """Run ``brdf-fit render`` (:data:`RENDER` to ``out``) in this process, timing its stages;
     print them as JSON. Called in a fresh interpreter (``--stages OUT``)."""
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     import brdf_cli.main as cli_main
     import brdf_cli.render as cli_render
     import brdf
@@ -71,7 +95,8 @@ def stages(out):
     import brdf.render.image  # noqa: F401  (the EXR writer's module; OpenEXR itself on write)
     import brdf.render.scene as S
     import brdf.render._integrator  # noqa: F401  (the kernels' module, its dispatchers made)
-    t = {"import": time.perf_counter() - start, "scene compile": 0.0, "write": 0.0}
+    t = {"import": time.perf_counter() - start, "scene compile": 0.0, "write": 0.0,
+         "import CPU": time.process_time() - cpu_start}
     marks = {}
 
     def around(owner, name, stage):
@@ -98,8 +123,9 @@ def stages(out):
     render = R.render
 
     def rendering(*args, **kwargs):
+        cpu = time.process_time()
         result = render(*args, **kwargs)
-        marks["result"] = result
+        marks["result"], marks["render CPU"] = result, time.process_time() - cpu
         return result
     R.render = rendering
     parse_start = time.perf_counter()
@@ -110,7 +136,11 @@ def stages(out):
     t["argument parsing"] = marks["handler"] - parse_start
     t["kernel load"] = result.compile_seconds
     t["render"] = result.seconds
-    t["other"] = (end - start) - sum(t.values())
+    t["other"] = (end - start) - sum(v for k, v in t.items() if k in STAGES)
+    # CPU of every thread but the render call's (which runs on all cores), plus its kernel
+    # load (one thread, so its wall seconds are its CPU seconds)
+    t["CPU"] = (time.process_time() - cpu_start - marks["render CPU"]
+                + result.compile_seconds)
     print(json.dumps(t))
     del brdf
 
@@ -134,6 +164,9 @@ def _child(*argv, env=None):
 
 def warm(repeats):
     cli = _cli()
+    if not compile_bytecode():
+        print("bytecode of brdf and brdf_cli compiled first (PYTHONDONTWRITEBYTECODE is set; "
+              "pip install compiles it)\n")
     py = timed([sys.executable, "-c", "pass"], repeats)
     rows = [("python -c pass (baseline)", py),
             ("python -c 'import numpy, numba' (floor)",
@@ -150,11 +183,15 @@ def warm(repeats):
         own = timed([cli, *RENDER, "--json", "-o", out], repeats, overhead=True)
         runs = [_child("--stages", out) for _ in range(repeats)]
     alone = _child("--render-alone", str(repeats))["render alone"]
-    print(f"{'warm, fresh process each':40s} {'best s':>7s} {'median':>7s} {'- python':>9s}")
-    for name, (best, med) in rows:
-        print(f"{name:40s} {best:7.3f} {med:7.3f} {best - py[0]:9.3f}")
-    print(f"check: {check[0]:.3f}-{check[1]:.3f} s against the 0.5 s target "
-          f"({check[0] / 0.5:.2f}x of it)")
+    print(f"load average {os.getloadavg()[0]:.1f} ({os.cpu_count()} cores)")
+    print(f"{'warm, fresh process each':40s} {'best s':>7s} {'median':>7s} {'- python':>9s} "
+          f"{'CPU s':>7s} {'median':>7s} {'- python':>9s}")
+    for name, (best, med, cbest, cmed) in rows:
+        print(f"{name:40s} {best:7.3f} {med:7.3f} {best - py[0]:9.3f} "
+              f"{cbest:7.3f} {cmed:7.3f} {cbest - py[2]:9.3f}")
+    print(f"check: {check[0]:.3f}-{check[1]:.3f} s wall, {check[2]:.3f}-{check[3]:.3f} s CPU, "
+          f"against the 0.5 s target ({check[2] / 0.5:.2f}x of it in CPU); "
+          f"{check[2] / rows[1][1][2]:.2f}x the numpy + numba floor's CPU")
     print(f"render alone (warm process, best): {alone:.3f} s; the command's overhead: "
           f"{rend[0] - alone:.3f} s best, {rend[1] - alone:.3f} s median (target 0.3 s)")
     print(f"the command's overhead against its own render (wall - its render's seconds): "
@@ -168,6 +205,10 @@ def warm(repeats):
     overhead = total_best - min(r["render"] for r in runs)
     print(f"  {'sum (best of each)':20s} {total_best:7.3f}; without the render: "
           f"{overhead:.3f} s")
+    cpu = [r["CPU"] for r in runs]
+    print(f"  CPU seconds of all but the render (best, median; python start not included): "
+          f"{min(cpu):.3f} {statistics.median(cpu):.3f}; of the imports: "
+          f"{min(r['import CPU'] for r in runs):.3f}")
 
 
 # --- cold: the first run after pip install ---------------------------------------------------

@@ -20,7 +20,10 @@ import os
 import re
 import sys
 
-from numba.core import caching
+import numpy as np
+from numba.core import caching, errors, types
+from numba.core.typing.typeof import Purpose, typeof, typeof_impl
+from numba.np import numpy_support
 
 _PACKAGE = os.path.dirname(os.path.abspath(__file__))
 _JIT = os.path.join(_PACKAGE, "_jit.py")
@@ -91,24 +94,45 @@ def _runtime_ready(target_context):
         _runtime["ready"] = True
 
 
-def _arraymath_without_blas_probe():
-    """Import ``numba.np.arraymath`` without its import-time probe for BLAS.
+class _ArraymathWithoutBlasProbe:
+    """Import hook: ``numba.np.arraymath`` imports without its import-time probe for BLAS.
 
     A cached kernel that holds any of numba's array functions imports their module on load
     (to rebuild their environments), and ``numba.np.arraymath`` probes for BLAS on import by
     importing all of ``scipy.linalg``: 0.1-0.25 s of a render's start. scipy is a dependency of
     this package, so the probe's answer is known (BLAS is there); numba's linear algebra still
-    imports scipy's BLAS when a kernel using it compiles."""
-    if "numba.np.arraymath" in sys.modules:
-        return
-    from numba.np import linalg
-    probe = linalg.ensure_blas
-    linalg.ensure_blas = lambda: None
-    try:
-        from numba.np import arraymath
-    finally:
-        linalg.ensure_blas = probe
-    arraymath.ensure_blas = probe
+    imports scipy's BLAS when a kernel using it compiles. The hook waits for that import
+    (a ``check`` never makes it; importing the module ahead cost it 0.04 s) and then leaves
+    ``sys.meta_path``."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numba.np.arraymath":
+            return None
+        sys.meta_path.remove(self)
+        import importlib.util
+        spec = importlib.util.find_spec(name)
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            from numba.np import linalg
+            probe = linalg.ensure_blas
+            linalg.ensure_blas = lambda: None
+            try:
+                run(module)
+            finally:
+                linalg.ensure_blas = probe
+            module.ensure_blas = probe
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+def _arraymath_without_blas_probe():
+    """Have ``numba.np.arraymath`` import without its probe for BLAS when it first imports
+    (:class:`_ArraymathWithoutBlasProbe`)."""
+    if "numba.np.arraymath" not in sys.modules and not any(
+            isinstance(f, _ArraymathWithoutBlasProbe) for f in sys.meta_path):
+        sys.meta_path.insert(0, _ArraymathWithoutBlasProbe())
 
 
 class _QuickLoad(caching.FunctionCache):
@@ -121,9 +145,54 @@ class _QuickLoad(caching.FunctionCache):
             return self._load_overload(sig, target_context)
 
 
+#: numba's typing of tuples, named tuples and any tuple subclass without one of its own
+_TUPLE_TYPEOF = typeof_impl.dispatch(tuple)
+
+
+def _argument_type(value):
+    """numba's type of a kernel's argument, with exact ``np.ndarray`` values (also within
+    tuples and named tuples) typed here (dtype, dimensions, layout, read-only flag); None where
+    numba's ``typeof`` has to say (an unsupported value, with its own error)."""
+    if isinstance(value, tuple) and typeof_impl.dispatch(type(value)) is _TUPLE_TYPEOF:
+        items = [_argument_type(v) for v in value]
+        return None if None in items else types.BaseTuple.from_types(items, type(value))
+    if type(value) is np.ndarray:
+        try:
+            dtype = numpy_support.from_dtype(value.dtype)
+        except errors.NumbaNotImplementedError:
+            return None
+        return types.Array(dtype, value.ndim, numpy_support.map_layout(value),
+                           readonly=not value.flags.writeable)
+    if isinstance(value, np.ndarray):  # a subclass: a masked array, which numba refuses
+        return None
+    try:
+        return typeof(value, Purpose.argument)
+    except (errors.NumbaError, ValueError):
+        return None
+
+
+def _typing_arrays_directly(dispatcher):
+    """``dispatcher``, typing numpy array arguments (and tuples of them) itself rather than
+    through numba's ``typeof``, whose first array imports ``numpy.ma`` (15 ms of each
+    command's start) to refuse masked arrays: an exact ``np.ndarray`` is not one. Other values
+    go to ``typeof``."""
+    numba_typeof = dispatcher.typeof_pyval
+
+    def typeof_pyval(value):
+        t = _argument_type(value)
+        if t is None:
+            return numba_typeof(value)
+        dispatcher._types_active_call.add(t)  # as numba's typeof_pyval does
+        return t
+
+    dispatcher.typeof_pyval = typeof_pyval
+    return dispatcher
+
+
 def quick_loading(dispatcher):
     """``dispatcher`` (with ``cache=True``), loading its cached machine code without numba's
-    full set-up; returned as it is when it caches otherwise (another numba version's cache)."""
+    full set-up (and typing its array arguments without importing ``numpy.ma``); its cache
+    left as it is when it caches otherwise (another numba version's cache)."""
     if type(dispatcher._cache) is caching.FunctionCache:
         dispatcher._cache.__class__ = _QuickLoad
-    return dispatcher
+    return _typing_arrays_directly(dispatcher)

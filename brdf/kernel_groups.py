@@ -22,13 +22,14 @@ KERNELS = {"models": ("the model kernels", ("brdf.models.", "brdf.sampling", "br
            "tables": ("the measured-table kernels", ("brdf.io.", "brdf.triangulation")),
            "render": ("the renderer's kernels", ("brdf.render.",))}
 
-#: Seconds a cold compile of each group alone took, rounded up to 5 s:
-#: ``brdf.precompile.compile_groups([group])`` in a fresh process with an empty cache
-#: (NUMBA_CACHE_LOCATOR_CLASSES=UserProvidedCacheLocator, a new NUMBA_CACHE_DIR), one group
-#: after another, on the 2-core development host while a benchmark kept it busy (load average
-#: 5-6): models 103.9 s, fitting 41.6 s, tables 18.6 s, render 64.6 s. A first command
-#: compiles only the kernels it calls, at most its group's.
-COLD_SECONDS = {"models": 105, "fitting": 45, "tables": 20, "render": 65}
+#: Seconds a cold compile of each group alone takes on one idle core, rounded up to 5 s: the
+#: CPU seconds of ``brdf.precompile.compile_groups([group])`` in a fresh process with an empty
+#: cache (NUMBA_CACHE_LOCATOR_CLASSES=UserProvidedCacheLocator, a new NUMBA_CACHE_DIR), one
+#: group after another, on the 2-core development host (2026-12-04, load average 2.4-5.3 from
+#: other work, so wall times were 1.3-3 times these): models 59.5 s, fitting 30.1 s, tables
+#: 19.0 s, render 75.6 s. A first command compiles only the kernels it calls, at most its
+#: group's (a first ``check``: 37.5 s).
+COLD_SECONDS = {"models": 60, "fitting": 35, "tables": 20, "render": 80}
 
 
 def group_of(module):
@@ -51,7 +52,7 @@ class CompileNotice(event.Listener):
 
     Before the first compile of each group in this process, one line on stderr
     (:func:`brdf.progress.note`, silenced by ``quiet``): ``compiling the model kernels once
-    for this machine (up to about 105 s) ...``, the group's :data:`COLD_SECONDS` (a command
+    for this machine (up to about 60 s) ...``, the group's :data:`COLD_SECONDS` (a command
     may need only part of the group). A kernel's callees compile within its own compile;
     they count as its work and print nothing of their own.
 

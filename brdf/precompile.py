@@ -106,12 +106,15 @@ def _render_derivatives():
 #: Kernel groups by name (the names of :data:`brdf.kernel_groups.KERNELS`), each compiled by
 #: small calls of the public functions that use them, in parts that compile apart (their own
 #: top-level kernels; callees they share come from whichever part compiled them first, through
-#: the disk cache, or compile twice). Each part with about the seconds of CPU its kernels took
-#: to compile (numba's compile events, one process, 2026-12-04), so the longest start first.
-GROUPS = {"models": ((_model_eval, 70), (_model_sampling, 35)),
-          "fitting": ((_fitting_gradient, 25), (_fitting_losses, 25)),
+#: the disk cache, or compile twice). Each part with the CPU seconds it took on an empty cache,
+#: rounded up to 5 s, so the longest start first: all parts in one process, longest first, on
+#: the 2-core development host (2026-12-04): render 36.1 s, model eval 33.5 s, render
+#: derivatives 21.8 s, model sampling 15.8 s, fitting gradient 11.7 s, fitting losses 4.2 s,
+#: tables 1.9 s (125 s in all).
+GROUPS = {"models": ((_model_eval, 35), (_model_sampling, 20)),
+          "fitting": ((_fitting_gradient, 15), (_fitting_losses, 5)),
           "tables": ((_tables, 5),),
-          "render": ((_render, 40), (_render_derivatives, 35))}
+          "render": ((_render, 40), (_render_derivatives, 25))}
 #: Processes the parts are dealt out to by default (one per core of a 2-core machine).
 PROCESSES = 2
 

@@ -47,3 +47,25 @@ def test_a_warm_process_loads_kernels_without_numbas_registry():
     assert np.array_equal(np.array(out["f"]), expected)
     assert out["passed"] == passed
     assert out["dot"] == 5.0
+
+
+def test_arguments_are_typed_as_numba_types_them():
+    """A kernel types numpy arrays (and tuples of them) itself, without numba's ``typeof``
+    (which imports numpy.ma on its first array); the types must be numba's own."""
+    import collections
+    from numba.core.typing.typeof import Purpose, typeof
+    from brdf._kernel_cache import _argument_type
+    pair = collections.namedtuple("pair", "a b")
+    a = np.arange(24.0).reshape(2, 3, 4)
+    read_only = np.frombuffer(np.arange(6.0).tobytes()).reshape(2, 3)
+    values = [a, a[:, ::2], a.T, np.asfortranarray(a), a[0], np.zeros(0), np.array(3.0),
+              read_only, np.broadcast_to(np.ones(3), (4, 3)), np.arange(3), np.zeros(2, bool),
+              np.zeros(2, np.complex64), np.zeros(3, np.float32)[::-1], (a, read_only),
+              pair(a, 1.5), (a, 3, True), 2.5, 7, (np.zeros((1, 0)),),
+              np.zeros(2, dtype=[("x", "f8"), ("y", "i4")])]
+    for value in values:
+        assert _argument_type(value) == typeof(value, Purpose.argument), value
+    # left to numba, which refuses them or says why
+    assert _argument_type(np.ma.masked_array([1.0])) is None
+    assert _argument_type(np.zeros(2, "datetime64[Y]")[:0]) == typeof(
+        np.zeros(2, "datetime64[Y]")[:0], Purpose.argument)

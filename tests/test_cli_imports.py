@@ -1,0 +1,67 @@
+"""What a ``brdf-fit`` command imports: only what it uses (issue 27, a warm command's start).
+
+Each command runs in a fresh interpreter, through ``brdf_cli.main.main`` as the installed script
+does, and the test reads ``sys.modules`` at its end. numpy, numba and the bits of scipy and
+PyYAML that numba imports on its own are the floor of any command that runs a kernel; the
+libraries below belong to other commands (fitting, plots, the explorer, batches, images), and
+importing one costs 0.05-1 s of a command that never calls it.
+"""
+
+import json
+import subprocess
+import sys
+
+_RUN = """
+import json, sys
+from brdf_cli.main import main
+try:
+    status = main(sys.argv[1:])
+except SystemExit as exc:  # --help
+    status = exc.code or 0
+print(json.dumps({"status": status, "modules": sorted(sys.modules)}))
+"""
+
+#: Modules no command below may import: the optimisers and fitting, plots, the explorer,
+#: images, HDF5, clusters, and scipy's subpackages (numba imports scipy's package alone).
+FOREIGN = ("scipy.optimize", "scipy.interpolate", "scipy.spatial", "scipy.linalg",
+           "scipy.special", "scipy.stats", "scipy.integrate", "matplotlib", "pyvista", "vtk",
+           "panel", "bokeh", "PIL", "h5py", "dask", "distributed", "nlopt", "emcee",
+           "brdf.fitting", "brdf.viz", "brdf.capture")
+
+
+def _imported(tmp_path, *argv):
+    done = subprocess.run([sys.executable, "-c", _RUN, *argv], capture_output=True,
+                          text=True, timeout=900, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    return out["status"], set(out["modules"])
+
+
+def _foreign(modules, allowed=()):
+    return sorted(m for m in modules
+                  if any(m == f or m.startswith(f + ".") for f in FOREIGN)
+                  and not any(m == a or m.startswith(a + ".") for a in allowed))
+
+
+def test_help_imports_neither_the_library_nor_numba(tmp_path):
+    status, modules = _imported(tmp_path, "--help")
+    assert status == 0
+    assert not {m.split(".")[0] for m in modules} & {"brdf", "numpy", "numba", "scipy"}
+
+
+def test_check_imports_only_the_model_kernels_and_the_checks(tmp_path):
+    status, modules = _imported(tmp_path, "-q", "check", "lambert(albedo=0.5) + ggx(alpha=0.3)")
+    assert status in (0, 1)  # the checks ran (1: one failed)
+    assert _foreign(modules) == []
+    # nor the renderer, the EXR writer, numba's array functions with the BLAS probe, or
+    # numpy.ma (which numba's typeof imports to refuse masked arrays)
+    assert not {"brdf.render", "OpenEXR", "numba.np.arraymath", "numpy.ma"} & modules
+    assert "brdf.properties" in modules  # the test sees the command's own imports
+
+
+def test_render_imports_only_the_renderer_and_the_exr_writer(tmp_path):
+    status, modules = _imported(tmp_path, "-q", "render", "lambert", "--scene", "cornell",
+                                "--size", "8x8", "--spp", "1", "-o", str(tmp_path / "c.exr"))
+    assert status == 0
+    assert _foreign(modules) == []
+    assert {"brdf.render", "OpenEXR"} <= modules
