@@ -9,10 +9,10 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
   lit-sphere and lit-object previews, theta_h / theta_d slice), with the time of each view, for the draft the
   page asks for while the slider moves and for the full update when it is let go;
 - in the browser (headless chromium through selenium, when chromium and chromedriver are
-  installed): from the slider's value set in the page (as a drag moves it) to the in-plane
-  curve's new data drawn at the next animation frame, the round trip through the websocket
-  included; and, as the floor under it, the same round trip when the server changes one
-  two-point curve and computes nothing;
+  installed): from the slider's value set in the page (as a drag moves it) to every view's
+  new data drawn (the lobe redrawn, and the plots and previews painted at the next animation
+  frame), the round trip through the websocket included; and, as the floor under it, the
+  same round trip when the server changes one two-point curve and computes nothing;
 - server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
   and phi_i change at once), and the draft with the previews under the sky map.
 
@@ -69,19 +69,23 @@ def arrow_drag(repeats):
     return totals
 
 
-# JavaScript: set the slider's value in the page as a drag does, then wait for the in-plane
-# curve's data to change and the lobe to be redrawn (unless timing the floor, which leaves the
-# lobe as it is), and one animation frame more for the plots; answer the milliseconds taken
+# JavaScript: set the slider's value in the page as a drag does, then wait for the data of
+# every view's source to change (the in-plane and albedo curves, the spheres, the objects, the
+# slice; only the in-plane curve when timing the floor) and the lobe to be redrawn (unless
+# timing the floor, which leaves the lobe as it is), and one animation frame more, in which
+# Bokeh paints the plots; answer the milliseconds taken
 _ROUND_TRIP = """
 const [title, value, canvas, floor, done] = arguments;
 const models = [...Bokeh.documents[0]._all_models.values()];
 const slider = models.find(m => m.title === title && 'value' in m);
-const source = models.find(m => m.name === 'polar-0');
-const before = source.data.y, drawn = canvas.dataset.drawn;
+const names = floor ? ['polar-0'] : ['polar-0', 'albedo-0', 'spheres', 'objects', 'slice-image'];
+const sources = names.map(name => models.find(m => m.name === name));
+const before = sources.map(s => s.data), drawn = canvas.dataset.drawn;
 const start = performance.now();
 slider.value = value;
 (function poll() {
-  if (source.data.y !== before && (floor || canvas.dataset.drawn !== drawn)) {
+  if (sources.every((s, k) => s.data !== before[k])
+      && (floor || canvas.dataset.drawn !== drawn)) {
     requestAnimationFrame(() => done(performance.now() - start));
   } else {
     setTimeout(poll, 1);

@@ -79,6 +79,27 @@ def require_panel():
     return panel
 
 
+def live_slider_class():
+    """Panel's float slider whose moves reach the explorer at once: Panel waits 50 ms before
+    it hands a widget's change from the page to Python (to gather a burst of them), which
+    was half the time from a slider's move to the redrawn views (benchmarks/
+    bench_explore.py). Moves that come while an update runs still merge into one."""
+    global _SLIDER
+    if _SLIDER is None:
+        pn = require_panel()
+
+        class LiveSlider(pn.widgets.FloatSlider):
+            # the change still runs as a callback of the document (under its lock, so that
+            # Bokeh sends its changes), only with no wait
+            _debounce = 0
+
+        _SLIDER = LiveSlider
+    return _SLIDER
+
+
+_SLIDER = None
+
+
 def material_from(subject):
     """A model or table from what the explorer is given: a model, a table, the path of a JSON
     fit report or of a measured file, or a model spec."""
@@ -443,10 +464,11 @@ class Explorer:
         from .lobe_canvas import lobe_canvas_class
         pn.extension()
         self._pn = pn
-        self.theta_slider = pn.widgets.FloatSlider(label="theta_i [deg]", start=0.0, end=89.0,
-                                                   step=0.5, value=self.theta_i)
-        self.phi_slider = pn.widgets.FloatSlider(label="phi_i [deg]", start=0.0, end=360.0,
-                                                 step=1.0, value=self.phi_i)
+        self._Slider = live_slider_class()
+        self.theta_slider = self._Slider(label="theta_i [deg]", start=0.0, end=89.0,
+                                         step=0.5, value=self.theta_i)
+        self.phi_slider = self._Slider(label="phi_i [deg]", start=0.0, end=360.0, step=1.0,
+                                       value=self.phi_i)
         for slider, key in ((self.theta_slider, "theta"), (self.phi_slider, "phi")):
             slider.param.watch(lambda e, key=key: self._incidence(
                 draft=e.name == "value", **{key: e.new}), ["value", "value_throttled"])
@@ -546,9 +568,8 @@ class Explorer:
         from bokeh.palettes import Magma256
         from bokeh.plotting import figure
         self.phi_d = 90.0
-        self.phi_d_slider = pn.widgets.FloatSlider(label="slice phi_d [deg]", start=0.0,
-                                                   end=180.0, step=1.0, value=self.phi_d,
-                                                   width=300)
+        self.phi_d_slider = self._Slider(label="slice phi_d [deg]", start=0.0, end=180.0,
+                                         step=1.0, value=self.phi_d, width=300)
         self.phi_d_slider.param.watch(self._phi_d, ["value", "value_throttled"])
         self._slice_entries = {}
         self.slice_select = pn.widgets.Select(label="slice of", options=[FIRST_SHOWN],
@@ -594,13 +615,12 @@ class Explorer:
             log_format = CustomJSTickFormatter(code="return (10 ** tick).toPrecision(3)")
             for s in view_data.parameter_sliders(material.model):
                 if s.log:
-                    w = pn.widgets.FloatSlider(label=s.name, start=math.log10(s.low),
-                                               end=math.log10(s.high),
-                                               value=math.log10(s.value), step=0.01,
-                                               format=log_format)
+                    w = self._Slider(label=s.name, start=math.log10(s.low),
+                                     end=math.log10(s.high), value=math.log10(s.value),
+                                     step=0.01, format=log_format)
                 else:
-                    w = pn.widgets.FloatSlider(label=s.name, start=s.low, end=s.high,
-                                               value=s.value, step=(s.high - s.low) / 500)
+                    w = self._Slider(label=s.name, start=s.low, end=s.high,
+                                     value=s.value, step=(s.high - s.low) / 500)
                 w.param.watch(self._slider_callback(material, s), ["value", "value_throttled"])
                 if s.splits:
                     split = pn.widgets.Button(label="RGB", width=50, margin=(18, 0, 0, 0),

@@ -723,6 +723,21 @@ def test_dragging_the_incident_arrow_sets_both_sliders_and_every_view():
     assert (app.theta_i, app.phi_i) == (89.0, 0.0)
 
 
+def test_sliders_and_the_lobe_hand_the_page_s_moves_over_at_once():
+    # Panel holds a widget's change from the page for its _debounce (50 ms by default) before
+    # Python sees it: half the latency budget of a slider's move (benchmarks/bench_explore.py)
+    import panel as pn
+    from brdf.viz.explorer import Explorer
+    app = Explorer([SPEC, "beckmann(alpha=0.3)"])
+    sliders = app.layout.select(pn.widgets.FloatSlider)
+    names = {s.name for s in sliders}
+    assert {"theta_i [deg]", "phi_i [deg]", "slice phi_d [deg]", "ggx.alpha",
+            "beckmann.alpha", "lambert.albedo[2]"} <= names, names
+    slow = [s.name for s in sliders if s._debounce != 0]
+    assert not slow, slow
+    assert app.lobe._debounce == 0
+
+
 # -- in a headless browser --------------------------------------------------------------------
 
 def _browser():
