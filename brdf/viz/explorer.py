@@ -41,6 +41,10 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 #: (a draft that keeps every view live; ``benchmarks/bench_explore.py`` times both).
 ALBEDO_THETA = np.linspace(0.0, 89.0, 46)
 DRAFT_ALBEDO_THETA = np.linspace(0.0, 89.0, 16)
+#: The albedo cubature's tolerance, full and draft (view_data.albedo_curve): a draft's at
+#: 1e-2 is within 2e-3 of the exact curve for lambert + ggx (alpha 0.05 to 0.35), under a
+#: pixel of the plot, at half the cost.
+ALBEDO_TOL, DRAFT_ALBEDO_TOL = 1e-3, 1e-2
 #: Polar steps of the 3-D lobe (azimuth steps are twice as many), full and draft: the page
 #: draws 2 n^2 triangles per lobe on a canvas, about 10 microseconds each in headless chromium.
 LOBE_RESOLUTION = 24
@@ -382,7 +386,8 @@ class Explorer:
         # the curve does not depend on theta_i: kept while the model and phi_i stay
         key = (str(model), self.phi_i, len(thetas))
         if material.albedo_cache is None or material.albedo_cache[0] != key:
-            material.albedo_cache = key, view_data.albedo_curve(model, thetas, self.phi_i)
+            material.albedo_cache = key, view_data.albedo_curve(
+                model, thetas, self.phi_i, tol=DRAFT_ALBEDO_TOL if draft else ALBEDO_TOL)
         out["albedo"] = thetas, material.albedo_cache[1]
         times["albedo"] = time.perf_counter() - start
         start = time.perf_counter()
@@ -942,8 +947,10 @@ class Explorer:
             xs.append(float(len(xs)))
         self.albedo.y_range.end = 1.08 * top
         self.albedo_marker.location = self.theta_i
-        self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
-                                     "y": [0.0, 1.1 * wi[2]]}
+        incident = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
+                    "y": [0.0, 1.1 * wi[2]]}
+        if incident != self.incident_source.data:  # Bokeh would send it again
+            self.incident_source.data = incident
         changes = {"lobes": lobes, "incident": (ARROW * wi).tolist()}
         if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
             # sent when the grid changes (a draft's is coarser), with the points it indexes

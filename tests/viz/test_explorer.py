@@ -500,11 +500,12 @@ def test_explorer_updates_its_sources_and_reports_bad_input():
     assert app.object_view.title.text == "lit object (direct light)"
     assert app.sphere_source.data["image"] is not preview
     # the object's draft: the preview of the new model, at the draft's size
-    from brdf.viz.explorer import DRAFT_ALBEDO_THETA, DRAFT_SPHERE_SIZE
+    from brdf.viz.explorer import DRAFT_ALBEDO_THETA, DRAFT_ALBEDO_TOL, DRAFT_SPHERE_SIZE
     np.testing.assert_array_equal(app.object_source.data["image"][0], view_data.to_rgba(
         view_data.object_preview(app.materials[0].model, DRAFT_SPHERE_SIZE,
                                  albedo=(DRAFT_ALBEDO_THETA, view_data.albedo_curve(
-                                     app.materials[0].model, DRAFT_ALBEDO_THETA)))))
+                                     app.materials[0].model, DRAFT_ALBEDO_THETA,
+                                     tol=DRAFT_ALBEDO_TOL)))))
     assert lit_object.shape != app.object_source.data["image"][0].shape
     assert not np.allclose(before, after)
     assert set(app.timings) >= {"lobe", "polar", "albedo", "sphere", "total"}
@@ -721,6 +722,19 @@ def test_dragging_the_incident_arrow_sets_both_sliders_and_every_view():
     # phi wraps, theta stops above the horizon
     app.lobe.drag = [95.0, 359.7, 1, 3]
     assert (app.theta_i, app.phi_i) == (89.0, 0.0)
+
+
+def test_a_drafts_albedo_curve_stays_within_a_pixel_of_the_exact_one():
+    from brdf.viz.explorer import DRAFT_ALBEDO_THETA, Explorer
+    app = Explorer([SPEC])
+    app.refine = False
+    for alpha in (0.05, 0.2, 0.35):
+        app.set_parameter(0, "ggx.alpha", alpha, draft=True)
+        exact = view_data.albedo_curve(app.materials[0].model, DRAFT_ALBEDO_THETA, tol=1e-7)
+        drawn = app.materials[0].albedo_source.data
+        np.testing.assert_array_equal(drawn["theta"], DRAFT_ALBEDO_THETA)
+        # the plot is 260 px high for an albedo range of about 1.1: 2e-3 is half a pixel
+        np.testing.assert_allclose(drawn["a"], exact.mean(axis=-1), atol=2e-3)
 
 
 def test_sliders_and_the_lobe_hand_the_page_s_moves_over_at_once():
