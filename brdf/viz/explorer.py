@@ -131,6 +131,8 @@ class Material:
     solo: bool = False
     widgets: list = field(default_factory=list)
     albedo_cache: tuple = None
+    #: a table's previews by (lighting, size, phi_i under the key light): (lights, images)
+    preview_cache: dict = field(default_factory=dict)
 
 
 def _short_name(material):
@@ -390,19 +392,24 @@ class Explorer:
                 model, thetas, self.phi_i, tol=DRAFT_ALBEDO_TOL if draft else ALBEDO_TOL)
         out["albedo"] = thetas, material.albedo_cache[1]
         times["albedo"] = time.perf_counter() - start
-        start = time.perf_counter()
         # the environment's term needs the albedo at theta_o: the curve just computed
         # under a map: its median-cut lights, fewer in a draft
         lights = self.lights(draft)
-        out["sphere"] = view_data.sphere_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
-            lights=lights)
-        times["sphere"] = time.perf_counter() - start
-        start = time.perf_counter()
-        out["object"] = view_data.object_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
-            lights=lights)
-        times["object"] = time.perf_counter() - start
+        size = DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE
+        # a table's previews change with nothing a slider moves but phi_i (its albedo curve,
+        # under the key light): kept per lighting, as they cost a table's slow lookups
+        key = (self.lighting, size, self.phi_i if lights is None else None)
+        kept = material.preview_cache.get(key) if is_table(model) else None
+        for name, preview in (("sphere", view_data.sphere_preview),
+                              ("object", view_data.object_preview)):
+            start = time.perf_counter()
+            if kept is not None and kept[0] is lights:
+                out[name] = kept[1][name]
+            else:
+                out[name] = preview(model, size, albedo=out["albedo"], lights=lights)
+            times[name] = time.perf_counter() - start
+        if is_table(model) and (kept is None or kept[0] is not lights):
+            material.preview_cache[key] = lights, {k: out[k] for k in ("sphere", "object")}
         return out, times
 
     def lights(self, draft=False):

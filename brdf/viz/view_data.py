@@ -27,7 +27,7 @@ __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_r
            "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
            "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
            "sky_map", "sky_lights", "map_lights", "map_lights_of", "MapStrata", "map_strata",
-           "sky_strata", "environment_map", "SKY_SHAPE",
+           "sky_strata", "TableSampler", "table_sampler", "environment_map", "SKY_SHAPE",
            "SKY_LIGHTS"]
 
 #: The preview's key light: towards the light from the sphere, upper left in front, and its
@@ -328,8 +328,10 @@ def sphere_preview(model, size=128, *, light=KEY_LIGHT, irradiance=KEY_IRRADIANC
 
 def _sampled(model, lights):
     """Whether the previews sample ``lights`` per pixel for ``model`` (:class:`MapStrata`
-    and a material with a sampler), and so filter the noise."""
-    return isinstance(lights, MapStrata) and hasattr(model, "sample_weighted")
+    and a material with a sampler, or a measured table: :class:`TableSampler`), and so
+    filter the noise."""
+    return isinstance(lights, MapStrata) and (hasattr(model, "sample_weighted")
+                                              or is_table(model))
 
 
 def _tent(image):
@@ -358,7 +360,7 @@ def _shade_lights(model, normal, view, lights, visible=None):
     m = len(normal)
     extra = None
     if isinstance(lights, MapStrata) and not _sampled(model, lights):
-        lights = lights.points  # a table: the median cut's point lights
+        lights = lights.points  # a material that cannot sample: the median cut's point lights
     if isinstance(lights, MapStrata):  # a direction per region and point
         directions, irradiance = lights.sample(m)
         extra = lights.material_term(model, wo, frame)  # the dim cells
@@ -732,8 +734,9 @@ class MapStrata:
       looked up there).
 
     Each cell of the map by one technique: a partition of the integral, so the sum stays
-    unbiased (PBR 4th ed., section 2.2). A material that cannot sample (a measured table) is
-    lit by the median cut's point lights instead (``points``). The previews apply a 3 x 3
+    unbiased (PBR 4th ed., section 2.2). A measured table is sampled by its tabulation
+    (:class:`TableSampler`); a material that cannot sample at all is lit by the median
+    cut's point lights instead (``points``). The previews apply a 3 x 3
     tent filter to soften the noise; the draws are kept per pixel count, so the noise stands
     still while a slider moves. Made by :func:`map_strata`; the previews take it as
     ``lights``.
@@ -780,7 +783,8 @@ class MapStrata:
             u = np.stack([(np.arange(n) + rng.random((m, n))) / n, rng.random((m, n))], -1)
             self._samples[key] = u
         u = self._samples[key]
-        wi, pdf, weight = model.sample_weighted(np.broadcast_to(wo[:, None], (m, n, 3)), u)
+        sampler = table_sampler(model) if is_table(model) else model
+        wi, pdf, weight = sampler.sample_weighted(np.broadcast_to(wo[:, None], (m, n, 3)), u)
         t, b, normal = frame
         world = (wi[..., :1] * t[:, None] + wi[..., 1:2] * b[:, None]
                  + wi[..., 2:] * normal[:, None])
@@ -817,6 +821,121 @@ class MapStrata:
                 self._samples.clear()
             self._samples[key] = directions, irradiance
         return self._samples[key]
+
+
+#: A measured table's tabulation for :class:`TableSampler`: bins of the view's theta_o
+#: (uniform in theta), cells of the drawn direction's theta and phi (phi from the view's
+#: azimuth), and the share of cosine-weighted draws mixed in.
+TABLE_BINS, TABLE_THETA, TABLE_PHI, TABLE_DEFENSIVE = 12, 24, 48, 0.2
+
+
+class TableSampler:
+    """Importance sampling of a measured table for the previews' :meth:`MapStrata.
+    material_term`, which models do with their own samplers: f cos(theta) of the table
+    tabulated once on a coarse grid of cells per bin of the view's theta_o (its value at each
+    cell's centre, the view at the bin's centre, phi measured from the view's azimuth: exact
+    for an isotropic table), drawn as a piecewise-constant density (PBR 4th ed., section
+    A.5.1: a cell by its share, uniform in cos(theta) and phi within it) mixed with
+    cosine-weighted draws (a defensive mixture, Hesterberg 1995: every direction the table
+    reflects into keeps a density). Each draw's weight is the table's own f cos / pdf, so the
+    estimate is unbiased however coarse the cells; the path tracer samples a table in the
+    same way on a finer grid (brdf.render).
+    """
+
+    def __init__(self, table):
+        self.table = table
+        b, t, p = TABLE_BINS, TABLE_THETA, TABLE_PHI
+        view = (np.arange(b) + 0.5) * (0.5 * np.pi) / b
+        theta = (np.arange(t) + 0.5) * (0.5 * np.pi) / t
+        phi = (np.arange(p) + 0.5) * (2.0 * np.pi) / p
+        T, P = np.meshgrid(theta, phi, indexing="ij")
+        lo = spherical_to_cartesian(T, P).reshape(-1, 3)
+        edges = np.arange(t + 1) * (0.5 * np.pi) / t
+        # a cell's solid angle: (cos theta0 - cos theta1) dphi
+        self.omega = np.repeat((np.cos(edges[:-1]) - np.cos(edges[1:])) * (2 * np.pi / p), p)
+        v = spherical_to_cartesian(view, np.zeros(b))
+        f = np.asarray(table.eval(np.broadcast_to(lo, (b,) + lo.shape),
+                                  np.broadcast_to(v[:, None], (b,) + lo.shape)), float)
+        f = np.nan_to_num(np.maximum(f.mean(axis=-1), 0.0)) * lo[:, 2] * self.omega
+        total = f.sum(axis=1, keepdims=True)
+        share = np.where(total > 0, f / np.where(total > 0, total, 1.0), 1.0 / f.shape[1])
+        self.cdf = np.concatenate([np.zeros((b, 1)), np.cumsum(share, axis=1)], axis=1)
+        self.cdf[:, -1] = 1.0
+        self.share = share
+
+    def _bin(self, wo):
+        theta = np.arccos(np.clip(wo[..., 2], 0.0, 1.0))
+        return np.minimum((theta / (0.5 * np.pi) * TABLE_BINS).astype(int), TABLE_BINS - 1)
+
+    def pdf(self, wo, wi):
+        """Solid-angle density of :meth:`sample_weighted`'s ``wi`` given ``wo``."""
+        b = self._bin(wo)
+        theta = np.arccos(np.clip(wi[..., 2], -1.0, 1.0))
+        phi = np.mod(np.arctan2(wi[..., 1], wi[..., 0]) - np.arctan2(wo[..., 1], wo[..., 0]),
+                     2 * np.pi)
+        it = np.minimum((theta / (0.5 * np.pi) * TABLE_THETA).astype(int), TABLE_THETA - 1)
+        ip = np.minimum((phi / (2 * np.pi) * TABLE_PHI).astype(int), TABLE_PHI - 1)
+        cell = it * TABLE_PHI + ip
+        tabulated = self.share[b, cell] / self.omega[cell]
+        cos = np.maximum(wi[..., 2], 0.0)
+        return np.where(wi[..., 2] > 0, (1 - TABLE_DEFENSIVE) * tabulated
+                        + TABLE_DEFENSIVE * cos / np.pi, 0.0)
+
+    def sample_weighted(self, wo, u):
+        """Directions ``wi`` drawn given ``wo`` (local, ``(..., 3)``) from uniform ``u``
+        ``(..., 2)``, their density and the weight f(wi, wo) cos(theta_i) / pdf
+        ``(..., C)``: as a model's ``sample_weighted``, by reciprocity from the view's side."""
+        wo = np.asarray(wo, float)
+        u = np.broadcast_to(np.asarray(u, float), wo.shape[:-1] + (2,))
+        u1, u2 = u[..., 0], u[..., 1]
+        cosine = u1 < TABLE_DEFENSIVE
+        # the cosine-weighted share: Malley's method (PBR 4th ed., section A.5.3)
+        r = np.sqrt(np.clip(u1 / TABLE_DEFENSIVE, 0.0, 1.0))
+        a = 2 * np.pi * u2
+        disc = np.stack([r * np.cos(a), r * np.sin(a), np.sqrt(np.maximum(1 - r * r, 0.0))],
+                        -1)
+        # the tabulated share: the cell whose CDF interval holds u1 (rows offset by 2 per bin,
+        # so one sorted search serves every bin), then uniform within the cell
+        b = self._bin(wo)
+        rest = np.clip((u1 - TABLE_DEFENSIVE) / (1 - TABLE_DEFENSIVE), 0.0, 1.0)
+        rows = (self.cdf + 2.0 * np.arange(TABLE_BINS)[:, None]).ravel()
+        width = self.cdf.shape[1]
+        cell = np.searchsorted(rows, rest + 2.0 * b, side="right") - 1 - b * width
+        cell = np.clip(cell, 0, width - 2)
+        low, high = self.cdf[b, cell], self.cdf[b, cell + 1]
+        s = np.clip(np.where(high > low, (rest - low) / np.where(high > low, high - low, 1.0),
+                             0.5), 0.0, 1.0)
+        it, ip = cell // TABLE_PHI, cell % TABLE_PHI
+        c0 = np.cos(it * (0.5 * np.pi) / TABLE_THETA)
+        c1 = np.cos((it + 1) * (0.5 * np.pi) / TABLE_THETA)
+        z = c0 + (c1 - c0) * s
+        phi = (ip + u2) / TABLE_PHI * 2 * np.pi + np.arctan2(wo[..., 1], wo[..., 0])
+        rz = np.sqrt(np.maximum(1 - z * z, 0.0))
+        drawn = np.stack([rz * np.cos(phi), rz * np.sin(phi), z], -1)
+        wi = np.where(cosine[..., None], disc, drawn)
+        pdf = self.pdf(wo, wi)
+        f = np.asarray(self.table.eval(wi, wo), float)
+        weight = np.where((pdf > 0)[..., None], np.nan_to_num(f) * (wi[..., 2] / np.where(
+            pdf > 0, pdf, 1.0))[..., None], 0.0)
+        return wi, pdf, weight
+
+
+def table_sampler(table):
+    """The :class:`TableSampler` of ``table``, made once per table (kept while it lives)."""
+    import weakref
+    global _TABLE_SAMPLERS
+    if _TABLE_SAMPLERS is None:
+        _TABLE_SAMPLERS = weakref.WeakKeyDictionary()
+    try:
+        sampler = _TABLE_SAMPLERS.get(table)
+    except TypeError:  # a table that cannot be held weakly: made each time
+        return TableSampler(table)
+    if sampler is None:
+        sampler = _TABLE_SAMPLERS[table] = TableSampler(table)
+    return sampler
+
+
+_TABLE_SAMPLERS = None
 
 
 def map_strata(radiance, count=SKY_LIGHTS):
