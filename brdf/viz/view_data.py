@@ -637,31 +637,55 @@ def sky_lights(count=SKY_LIGHTS, shape=SKY_SHAPE):
 #: Rows the median cut of a larger map works on: blocks of its pixels summed (their power and
 #: energy-weighted direction kept), so a 2k map's lights cost what a 256-row map's do.
 CUT_ROWS = 256
+#: Luminance of linear RGB, ITU-R BT.709.
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
-def _blocks(a, fh, fw):
-    h, w = a.shape[:2]
-    return a.reshape(h // fh, fh, w // fw, fw, *a.shape[2:]).sum((1, 3))
+def _cut_grid(radiance, factor):
+    """The grid a median cut of ``radiance`` ``(h, w, 3)`` works on: blocks of ``factor`` x
+    ``factor`` pixels (``factor`` divides both sides), each with the sums over its pixels of
+    power (radiance times solid angle, ``(H, W, 3)``), energy (the power's luminance, ITU-R
+    BT.709, ``(H, W)``), energy-weighted direction ``(H, W, 3)`` and solid angle ``(H, W)``.
+
+    A pixel's solid angle depends on its row only and its direction's azimuth on its column
+    (:func:`_map_directions`), and luminance is linear in radiance: so the map is summed
+    over each block's rows once, weighted by the solid angle times 1, sin theta and cos
+    theta (one matrix product), and all else is done on those row sums, a ``factor`` times
+    smaller (35 ms for a 1024 x 2048 map where per-pixel directions took 0.6 s)."""
+    h, w = radiance.shape[:2]
+    rows, cols = h // factor, w // factor
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    omega = 2 * np.pi ** 2 * np.sin(theta) / (h * w)  # PBR 3rd ed. eq. 14.9, per row
+    weights = np.stack([omega, omega * np.sin(theta), omega * np.cos(theta)])
+    summed = (weights.reshape(3, rows, factor).transpose(1, 0, 2)
+              @ np.ascontiguousarray(radiance).reshape(rows, factor, w * 3))
+    summed = summed.reshape(rows, 3, w, 3)
+    power = summed[:, 0].reshape(rows, cols, factor, 3).sum(2)
+    # luminance over the rows, times sin theta and cos theta: (rows, w) each
+    lum_sin, lum_cos = summed[:, 1] @ LUMINANCE, summed[:, 2] @ LUMINANCE
+    by_column = lambda a, weight: (a.reshape(rows, cols, factor)
+                                   * weight.reshape(cols, factor)).sum(-1)
+    # the direction (sin theta sin phi, cos theta, -sin theta cos phi), Mitsuba 3's layout
+    weighted = np.stack([by_column(lum_sin, np.sin(phi)), lum_cos.reshape(rows, cols, factor)
+                         .sum(-1), -by_column(lum_sin, np.cos(phi))], -1)
+    solid = np.repeat(factor * omega.reshape(rows, factor).sum(1)[:, None], cols, axis=1)
+    return power, power @ LUMINANCE, weighted, solid
 
 
 def _median_cut(radiance, count):
     """Debevec's median cut of ``radiance`` into ``count`` regions (see :func:`map_lights`):
     the grid it cut (the map's pixels, or blocks of them), as its cells' power ``(h, w, 3)``,
-    energy ``(h, w)`` and energy-weighted direction sums ``(h, w, 3)``, and the regions as
-    (row, row end, column, column end) on that grid."""
+    energy ``(h, w)``, energy-weighted direction sums ``(h, w, 3)`` and solid angles
+    ``(h, w)`` (:func:`_cut_grid`), and the regions as (row, row end, column, column end) on
+    that grid."""
     radiance = np.asarray(radiance, float)
     shape = radiance.shape[:2]
-    d, omega = _map_directions(shape)
-    power = radiance * omega[..., None]
-    energy = power @ np.array([0.2126, 0.7152, 0.0722])  # luminance, ITU-R BT.709
-    weighted = d * energy[..., None]
     factor = max(1, shape[0] // CUT_ROWS)
     while factor > 1 and (shape[0] % factor or shape[1] % factor):
         factor -= 1
-    if factor > 1:
-        power, energy, weighted, omega = (_blocks(a, factor, factor)
-                                          for a in (power, energy, weighted, omega))
-        shape = energy.shape
+    power, energy, weighted, omega = _cut_grid(radiance, factor)
+    shape = energy.shape
     regions = [(0, shape[0], 0, shape[1])]
     while len(regions) < count:
         split = []

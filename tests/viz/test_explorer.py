@@ -383,6 +383,33 @@ def test_map_lights_of_a_large_map_keep_its_irradiance():
                                   view_data.map_lights(view_data.sky_map(), 16)[1])
 
 
+def test_a_large_maps_cut_grid_holds_its_pixels_sums():
+    # a map of 512 rows is cut on 2 x 2 blocks: each block's power, luminance, luminance-
+    # weighted direction and solid angle are the sums over its pixels, computed here pixel by
+    # pixel (Mitsuba 3's envmap layout; solid angle 2 pi^2 sin(theta) / (h w), PBR 3rd ed.
+    # eq. 14.9); the explorer takes them by rows and columns
+    rng = np.random.default_rng(3)
+    big = np.kron(_two_lamps((64, 128)), np.ones((8, 8, 1)))
+    big *= rng.uniform(0.5, 1.5, (512, 1024, 1))  # no two pixels of a block alike
+    h, w = big.shape[:2]
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    phi = 2 * np.pi * (np.arange(w) + 0.5) / w
+    T, P = np.meshgrid(theta, phi, indexing="ij")
+    d = np.stack([np.sin(T) * np.sin(P), np.cos(T), -np.sin(T) * np.cos(P)], -1)
+    omega = 2 * np.pi ** 2 * np.sin(T) / (h * w)
+    power = big * omega[..., None]
+    energy = power @ [0.2126, 0.7152, 0.0722]
+    blocks = lambda a: a.reshape(h // 2, 2, w // 2, 2, *a.shape[2:]).sum((1, 3))
+    expected = (blocks(power), blocks(energy), blocks(d * energy[..., None]), blocks(omega))
+    got = view_data._median_cut(big, 16)
+    for want, have in zip(expected, got[:4]):
+        np.testing.assert_allclose(have, want, rtol=1e-10, atol=1e-14 * abs(want).max())
+    # 16 regions of equal energy (Debevec 2005), to a block's worth
+    regions = got[4]
+    shares = np.array([expected[1][r0:r1, c0:c1].sum() for r0, r1, c0, c1 in regions])
+    np.testing.assert_allclose(shares / shares.mean(), 1.0, atol=0.1)
+
+
 def test_a_users_map_preview_agrees_with_the_path_tracer(tmp_path):
     model = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3)")
     lamps = view_data.environment_map(_write_exr(tmp_path / "lamps.exr", _two_lamps()))
