@@ -1030,14 +1030,35 @@ class Server:
             _wait_for(self.port)
 
     def _session(self):
+        pn = require_panel()
         label, radiance = self.environment or (None, None)
         explorer = Explorer(self.materials, environment=radiance, environment_label=label)
         self.explorers.append(explorer)
+        doc = pn.state.curdoc
+        pn.state.onload(lambda: _send_at_once(doc))
         return explorer.layout
 
     def stop(self):
         """Stop serving (a threaded server)."""
         self.server.stop()
+
+
+def _send_at_once(doc):
+    """Have the websocket of ``doc``'s session send each message at once (TCP_NODELAY).
+
+    Tornado leaves Nagle's algorithm on: an update's message, written while the page has not
+    yet acknowledged the server's previous small reply, waited for the page's delayed ACK
+    (40 ms on Linux), which was most of the time from a slider's move to the redrawn views
+    when moves follow each other (benchmarks/bench_explore.py). Panel and Bokeh offer no
+    setting for it; their session's connections are reached as Panel itself reaches them,
+    and nothing is changed when that fails."""
+    session = getattr(getattr(doc, "session_context", None), "session", None)
+    for connection in getattr(session, "_subscribed_connections", ()):
+        socket = getattr(connection, "_socket", None)
+        try:
+            socket.set_nodelay(True)
+        except Exception:  # noqa: BLE001  (a closed or other socket: it stays as it was)
+            pass
 
 
 def _wait_for(port, timeout=60.0):

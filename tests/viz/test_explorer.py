@@ -963,6 +963,12 @@ def test_page_in_a_headless_browser(tmp_path):
         sphere = _wait(lambda: _sphere(driver))
         lit_object = _wait(lambda: _object(driver))
         app, = server.explorers
+        # the page's websocket sends each message at once (Nagle's algorithm off): a message
+        # would otherwise wait up to 40 ms for the page's delayed ACK of the previous one
+        import socket
+        _wait(lambda: [c for c in app._doc.session_context.session._subscribed_connections
+                       if c._socket.ws_connection.stream.socket.getsockopt(
+                           socket.IPPROTO_TCP, socket.TCP_NODELAY)])
         lobe = _wait(lambda: driver.execute_script(_DEEP, "canvas.brdf-lobe"))[0]
         # the mesh's triangles, less those the cosine folds to a point at the horizon
         faces = int(_wait(lambda: lobe.get_attribute("data-faces")))
