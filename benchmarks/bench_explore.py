@@ -14,7 +14,8 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
   frame), the round trip through the websocket included; and, as the floor under it, the
   same round trip when the server changes one two-point curve and computes nothing;
 - server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
-  and phi_i change at once), and the draft with the previews under the sky map.
+  and phi_i change at once), and the draft with the previews under the sky map, alone and
+  with a measured table (RGL's paper white) shown beside the model.
 
 Each sets ``ggx.alpha`` to a new value every time (alternating between two values would let
 nothing be cached either, but a fresh value rules it out).
@@ -29,6 +30,8 @@ import time
 from pathlib import Path
 
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, ks=[0.6,0.5,0.4])"
+TABLE = str(Path(__file__).resolve().parent.parent / "measurements" / "rgl"
+            / "paper_white_rgb.bsdf")
 BUDGET = 0.100
 
 
@@ -36,9 +39,9 @@ def _alphas(n):
     return [0.05 + 0.3 * (k % 17) / 17 + 1e-4 * k for k in range(n)]
 
 
-def server_side(repeats, draft, lighting="key"):
+def server_side(repeats, draft, lighting="key", also=()):
     from brdf.viz.explorer import Explorer
-    app = Explorer([SPEC])
+    app = Explorer([SPEC, *also])
     app.set_lighting(lighting)
     # the path-traced sphere that follows a full update runs in a thread of its own: timed
     # here it would only compete with the next update for the two cores
@@ -181,6 +184,11 @@ def main():
     _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
     totals, views = server_side(args.repeats, True, "sky")
     _row("server, sky map, while moving", totals)
+    for key in ("sphere", "object"):
+        _row(f"  of which {key}", views[key])
+    # a measured table shown beside the model: its previews are made once per lighting
+    totals, views = server_side(args.repeats, True, "sky", also=[TABLE])
+    _row("server, sky map, + an RGL table", totals)
     for key in ("sphere", "object"):
         _row(f"  of which {key}", views[key])
     if not args.no_browser:
