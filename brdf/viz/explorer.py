@@ -291,8 +291,10 @@ class Explorer:
         if label is None:
             label = (os.path.basename(os.fspath(source))
                      if isinstance(source, (str, os.PathLike)) else "array")
+        # both strata now, from one sum of the map: a large map's first draft need not wait
+        lights = view_data.map_strata_of_counts(radiance, (DRAFT_SKY_LIGHTS, SKY_LIGHTS))
         self.environment, self.environment_label = radiance, str(label)
-        self._map_lights = {}
+        self._map_lights = lights
         options = {**LIGHTING, MAP_LABEL + self.environment_label[:40]: "map"}
         self._lighting_options = options
         self._syncing_lighting = True  # the old choice may be gone: no update from the list

@@ -27,6 +27,7 @@ __all__ = ["Slider", "parameter_sliders", "with_parameter", "lobe_mesh", "lobe_r
            "torus_mesh", "to_rgba", "KEY_LIGHT", "KEY_IRRADIANCE", "ENVIRONMENT",
            "CAMERA_DISTANCE", "CAMERA_FOV", "TORUS_RADII", "TORUS_TILT", "TORUS_SEGMENTS",
            "sky_map", "sky_lights", "map_lights", "map_lights_of", "MapStrata", "map_strata",
+           "map_strata_of_counts",
            "sky_strata", "TableSampler", "table_sampler", "environment_map", "SKY_SHAPE",
            "SKY_LIGHTS"]
 
@@ -641,6 +642,18 @@ CUT_ROWS = 256
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
+def _map_grid(radiance):
+    """The median cut's grid of ``radiance`` (:func:`_cut_grid`): its pixels, or blocks of
+    them for a map of more than :data:`CUT_ROWS` rows (the largest factor of its size up to
+    rows / CUT_ROWS)."""
+    radiance = np.asarray(radiance, float)
+    shape = radiance.shape[:2]
+    factor = max(1, shape[0] // CUT_ROWS)
+    while factor > 1 and (shape[0] % factor or shape[1] % factor):
+        factor -= 1
+    return _cut_grid(radiance, factor)
+
+
 def _cut_grid(radiance, factor):
     """The grid a median cut of ``radiance`` ``(h, w, 3)`` works on: blocks of ``factor`` x
     ``factor`` pixels (``factor`` divides both sides), each with the sums over its pixels of
@@ -673,18 +686,13 @@ def _cut_grid(radiance, factor):
     return power, power @ LUMINANCE, weighted, solid
 
 
-def _median_cut(radiance, count):
+def _median_cut(radiance, count, grid=None):
     """Debevec's median cut of ``radiance`` into ``count`` regions (see :func:`map_lights`):
     the grid it cut (the map's pixels, or blocks of them), as its cells' power ``(h, w, 3)``,
     energy ``(h, w)``, energy-weighted direction sums ``(h, w, 3)`` and solid angles
-    ``(h, w)`` (:func:`_cut_grid`), and the regions as (row, row end, column, column end) on
-    that grid."""
-    radiance = np.asarray(radiance, float)
-    shape = radiance.shape[:2]
-    factor = max(1, shape[0] // CUT_ROWS)
-    while factor > 1 and (shape[0] % factor or shape[1] % factor):
-        factor -= 1
-    power, energy, weighted, omega = _cut_grid(radiance, factor)
+    ``(h, w)`` (:func:`_map_grid`, or ``grid`` when given), and the regions as (row, row end,
+    column, column end) on that grid."""
+    power, energy, weighted, omega = _map_grid(radiance) if grid is None else grid
     shape = energy.shape
     regions = [(0, shape[0], 0, shape[1])]
     while len(regions) < count:
@@ -967,6 +975,13 @@ def map_strata(radiance, count=SKY_LIGHTS):
     return MapStrata(*_median_cut(radiance, count))
 
 
+def map_strata_of_counts(radiance, counts):
+    """``{count: map_strata(radiance, count)}`` for each of ``counts``, the map summed into
+    its cut grid once (most of the work for a large map)."""
+    grid = _map_grid(radiance)
+    return {int(count): MapStrata(*_median_cut(radiance, count, grid)) for count in counts}
+
+
 @functools.lru_cache(maxsize=4)
 def sky_strata(count=SKY_LIGHTS, shape=SKY_SHAPE):
     """The :class:`MapStrata` of the sky map (:func:`sky_map`)."""
@@ -1007,9 +1022,8 @@ def environment_map(source):
     h, w = radiance.shape[:2]
     if w != 2 * h:
         refuse("", f"expected a lat-long map twice as wide as high, got {w} x {h} pixels")
-    negative = np.argwhere(radiance < 0)
-    if len(negative):
-        row, column, channel = negative[0]
+    if radiance.min() < 0:  # where, only then (a search of every pixel)
+        row, column, channel = np.argwhere(radiance < 0)[0]
         refuse(f"row {row}, column {column}",
                f"radiance {radiance[row, column, channel]:g} is negative (expected >= 0)")
     if not radiance.any():

@@ -408,6 +408,13 @@ def test_a_large_maps_cut_grid_holds_its_pixels_sums():
     regions = got[4]
     shares = np.array([expected[1][r0:r1, c0:c1].sum() for r0, r1, c0, c1 in regions])
     np.testing.assert_allclose(shares / shares.mean(), 1.0, atol=0.1)
+    # the strata of several counts from one sum of the map are each count's own
+    both = view_data.map_strata_of_counts(big, (16, 32))
+    for count in (16, 32):
+        alone = view_data.map_strata(big, count)
+        for a, b in zip(both[count].points, alone.points):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(both[count].cumulative, alone.cumulative)
 
 
 def test_a_users_map_preview_agrees_with_the_path_tracer(tmp_path):
