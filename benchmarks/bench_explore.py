@@ -9,12 +9,13 @@ Two figures for ``lambert + ggx``, each against the 100 ms budget:
   lit-sphere and lit-object previews, theta_h / theta_d slice), with the time of each view, for the draft the
   page asks for while the slider moves and for the full update when it is let go;
 - in the browser (headless chromium through selenium, when chromium and chromedriver are
-  installed): from the slider's value set in the page (as a drag moves it) to the in-plane
-  curve's new data drawn at the next animation frame, the round trip through the websocket
-  included; and, as the floor under it, the same round trip when the server changes one
-  two-point curve and computes nothing;
+  installed): from the slider's value set in the page (as a drag moves it) to every view's
+  new data drawn (the lobe redrawn, and the plots and previews painted at the next animation
+  frame), the round trip through the websocket included; and, as the floor under it, the
+  same round trip when the server changes one two-point curve and computes nothing;
 - server side, the draft update as the incident arrow is dragged on the 3-D lobe (theta_i
-  and phi_i change at once), and the draft with the previews under the sky map.
+  and phi_i change at once), and the draft with the previews under the sky map, alone and
+  with a measured table (RGL's paper white) shown beside the model.
 
 Each sets ``ggx.alpha`` to a new value every time (alternating between two values would let
 nothing be cached either, but a fresh value rules it out).
@@ -29,6 +30,8 @@ import time
 from pathlib import Path
 
 SPEC = "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, ks=[0.6,0.5,0.4])"
+TABLE = str(Path(__file__).resolve().parent.parent / "measurements" / "rgl"
+            / "paper_white_rgb.bsdf")
 BUDGET = 0.100
 
 
@@ -36,9 +39,9 @@ def _alphas(n):
     return [0.05 + 0.3 * (k % 17) / 17 + 1e-4 * k for k in range(n)]
 
 
-def server_side(repeats, draft, lighting="key"):
+def server_side(repeats, draft, lighting="key", also=()):
     from brdf.viz.explorer import Explorer
-    app = Explorer([SPEC])
+    app = Explorer([SPEC, *also])
     app.set_lighting(lighting)
     # the path-traced sphere that follows a full update runs in a thread of its own: timed
     # here it would only compete with the next update for the two cores
@@ -69,19 +72,23 @@ def arrow_drag(repeats):
     return totals
 
 
-# JavaScript: set the slider's value in the page as a drag does, then wait for the in-plane
-# curve's data to change and the lobe to be redrawn (unless timing the floor, which leaves the
-# lobe as it is), and one animation frame more for the plots; answer the milliseconds taken
+# JavaScript: set the slider's value in the page as a drag does, then wait for the data of
+# every view's source to change (the in-plane and albedo curves, the spheres, the objects, the
+# slice; only the in-plane curve when timing the floor) and the lobe to be redrawn (unless
+# timing the floor, which leaves the lobe as it is), and one animation frame more, in which
+# Bokeh paints the plots; answer the milliseconds taken
 _ROUND_TRIP = """
 const [title, value, canvas, floor, done] = arguments;
 const models = [...Bokeh.documents[0]._all_models.values()];
 const slider = models.find(m => m.title === title && 'value' in m);
-const source = models.find(m => m.name === 'polar-0');
-const before = source.data.y, drawn = canvas.dataset.drawn;
+const names = floor ? ['polar-0'] : ['polar-0', 'albedo-0', 'spheres', 'objects', 'slice-image'];
+const sources = names.map(name => models.find(m => m.name === name));
+const before = sources.map(s => s.data), drawn = canvas.dataset.drawn;
 const start = performance.now();
 slider.value = value;
 (function poll() {
-  if (source.data.y !== before && (floor || canvas.dataset.drawn !== drawn)) {
+  if (sources.every((s, k) => s.data !== before[k])
+      && (floor || canvas.dataset.drawn !== drawn)) {
     requestAnimationFrame(() => done(performance.now() - start));
   } else {
     setTimeout(poll, 1);
@@ -177,6 +184,11 @@ def main():
     _row("server, arrow dragged on the lobe", arrow_drag(args.repeats))
     totals, views = server_side(args.repeats, True, "sky")
     _row("server, sky map, while moving", totals)
+    for key in ("sphere", "object"):
+        _row(f"  of which {key}", views[key])
+    # a measured table shown beside the model: its previews are made once per lighting
+    totals, views = server_side(args.repeats, True, "sky", also=[TABLE])
+    _row("server, sky map, + an RGL table", totals)
     for key in ("sphere", "object"):
         _row(f"  of which {key}", views[key])
     if not args.no_browser:

@@ -41,6 +41,10 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e
 #: (a draft that keeps every view live; ``benchmarks/bench_explore.py`` times both).
 ALBEDO_THETA = np.linspace(0.0, 89.0, 46)
 DRAFT_ALBEDO_THETA = np.linspace(0.0, 89.0, 16)
+#: The albedo cubature's tolerance, full and draft (view_data.albedo_curve): a draft's at
+#: 1e-2 is within 2e-3 of the exact curve for lambert + ggx (alpha 0.05 to 0.35), under a
+#: pixel of the plot, at half the cost.
+ALBEDO_TOL, DRAFT_ALBEDO_TOL = 1e-3, 1e-2
 #: Polar steps of the 3-D lobe (azimuth steps are twice as many), full and draft: the page
 #: draws 2 n^2 triangles per lobe on a canvas, about 10 microseconds each in headless chromium.
 LOBE_RESOLUTION = 24
@@ -79,6 +83,27 @@ def require_panel():
     return panel
 
 
+def live_slider_class():
+    """Panel's float slider whose moves reach the explorer at once: Panel waits 50 ms before
+    it hands a widget's change from the page to Python (to gather a burst of them), which
+    was half the time from a slider's move to the redrawn views (benchmarks/
+    bench_explore.py). Moves that come while an update runs still merge into one."""
+    global _SLIDER
+    if _SLIDER is None:
+        pn = require_panel()
+
+        class LiveSlider(pn.widgets.FloatSlider):
+            # the change still runs as a callback of the document (under its lock, so that
+            # Bokeh sends its changes), only with no wait
+            _debounce = 0
+
+        _SLIDER = LiveSlider
+    return _SLIDER
+
+
+_SLIDER = None
+
+
 def material_from(subject):
     """A model or table from what the explorer is given: a model, a table, the path of a JSON
     fit report or of a measured file, or a model spec."""
@@ -106,6 +131,8 @@ class Material:
     solo: bool = False
     widgets: list = field(default_factory=list)
     albedo_cache: tuple = None
+    #: a table's previews by (lighting, size, phi_i under the key light): (lights, images)
+    preview_cache: dict = field(default_factory=dict)
 
 
 def _short_name(material):
@@ -264,8 +291,10 @@ class Explorer:
         if label is None:
             label = (os.path.basename(os.fspath(source))
                      if isinstance(source, (str, os.PathLike)) else "array")
+        # both strata now, from one sum of the map: a large map's first draft need not wait
+        lights = view_data.map_strata_of_counts(radiance, (DRAFT_SKY_LIGHTS, SKY_LIGHTS))
         self.environment, self.environment_label = radiance, str(label)
-        self._map_lights = {}
+        self._map_lights = lights
         options = {**LIGHTING, MAP_LABEL + self.environment_label[:40]: "map"}
         self._lighting_options = options
         self._syncing_lighting = True  # the old choice may be gone: no update from the list
@@ -361,22 +390,28 @@ class Explorer:
         # the curve does not depend on theta_i: kept while the model and phi_i stay
         key = (str(model), self.phi_i, len(thetas))
         if material.albedo_cache is None or material.albedo_cache[0] != key:
-            material.albedo_cache = key, view_data.albedo_curve(model, thetas, self.phi_i)
+            material.albedo_cache = key, view_data.albedo_curve(
+                model, thetas, self.phi_i, tol=DRAFT_ALBEDO_TOL if draft else ALBEDO_TOL)
         out["albedo"] = thetas, material.albedo_cache[1]
         times["albedo"] = time.perf_counter() - start
-        start = time.perf_counter()
         # the environment's term needs the albedo at theta_o: the curve just computed
         # under a map: its median-cut lights, fewer in a draft
         lights = self.lights(draft)
-        out["sphere"] = view_data.sphere_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
-            lights=lights)
-        times["sphere"] = time.perf_counter() - start
-        start = time.perf_counter()
-        out["object"] = view_data.object_preview(
-            model, DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE, albedo=out["albedo"],
-            lights=lights)
-        times["object"] = time.perf_counter() - start
+        size = DRAFT_SPHERE_SIZE if draft else SPHERE_SIZE
+        # a table's previews change with nothing a slider moves but phi_i (its albedo curve,
+        # under the key light): kept per lighting, as they cost a table's slow lookups
+        key = (self.lighting, size, self.phi_i if lights is None else None)
+        kept = material.preview_cache.get(key) if is_table(model) else None
+        for name, preview in (("sphere", view_data.sphere_preview),
+                              ("object", view_data.object_preview)):
+            start = time.perf_counter()
+            if kept is not None and kept[0] is lights:
+                out[name] = kept[1][name]
+            else:
+                out[name] = preview(model, size, albedo=out["albedo"], lights=lights)
+            times[name] = time.perf_counter() - start
+        if is_table(model) and (kept is None or kept[0] is not lights):
+            material.preview_cache[key] = lights, {k: out[k] for k in ("sphere", "object")}
         return out, times
 
     def lights(self, draft=False):
@@ -443,10 +478,11 @@ class Explorer:
         from .lobe_canvas import lobe_canvas_class
         pn.extension()
         self._pn = pn
-        self.theta_slider = pn.widgets.FloatSlider(label="theta_i [deg]", start=0.0, end=89.0,
-                                                   step=0.5, value=self.theta_i)
-        self.phi_slider = pn.widgets.FloatSlider(label="phi_i [deg]", start=0.0, end=360.0,
-                                                 step=1.0, value=self.phi_i)
+        self._Slider = live_slider_class()
+        self.theta_slider = self._Slider(label="theta_i [deg]", start=0.0, end=89.0,
+                                         step=0.5, value=self.theta_i)
+        self.phi_slider = self._Slider(label="phi_i [deg]", start=0.0, end=360.0, step=1.0,
+                                       value=self.phi_i)
         for slider, key in ((self.theta_slider, "theta"), (self.phi_slider, "phi")):
             slider.param.watch(lambda e, key=key: self._incidence(
                 draft=e.name == "value", **{key: e.new}), ["value", "value_throttled"])
@@ -546,9 +582,8 @@ class Explorer:
         from bokeh.palettes import Magma256
         from bokeh.plotting import figure
         self.phi_d = 90.0
-        self.phi_d_slider = pn.widgets.FloatSlider(label="slice phi_d [deg]", start=0.0,
-                                                   end=180.0, step=1.0, value=self.phi_d,
-                                                   width=300)
+        self.phi_d_slider = self._Slider(label="slice phi_d [deg]", start=0.0, end=180.0,
+                                         step=1.0, value=self.phi_d, width=300)
         self.phi_d_slider.param.watch(self._phi_d, ["value", "value_throttled"])
         self._slice_entries = {}
         self.slice_select = pn.widgets.Select(label="slice of", options=[FIRST_SHOWN],
@@ -594,13 +629,12 @@ class Explorer:
             log_format = CustomJSTickFormatter(code="return (10 ** tick).toPrecision(3)")
             for s in view_data.parameter_sliders(material.model):
                 if s.log:
-                    w = pn.widgets.FloatSlider(label=s.name, start=math.log10(s.low),
-                                               end=math.log10(s.high),
-                                               value=math.log10(s.value), step=0.01,
-                                               format=log_format)
+                    w = self._Slider(label=s.name, start=math.log10(s.low),
+                                     end=math.log10(s.high), value=math.log10(s.value),
+                                     step=0.01, format=log_format)
                 else:
-                    w = pn.widgets.FloatSlider(label=s.name, start=s.low, end=s.high,
-                                               value=s.value, step=(s.high - s.low) / 500)
+                    w = self._Slider(label=s.name, start=s.low, end=s.high,
+                                     value=s.value, step=(s.high - s.low) / 500)
                 w.param.watch(self._slider_callback(material, s), ["value", "value_throttled"])
                 if s.splits:
                     split = pn.widgets.Button(label="RGB", width=50, margin=(18, 0, 0, 0),
@@ -922,8 +956,10 @@ class Explorer:
             xs.append(float(len(xs)))
         self.albedo.y_range.end = 1.08 * top
         self.albedo_marker.location = self.theta_i
-        self.incident_source.data = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
-                                     "y": [0.0, 1.1 * wi[2]]}
+        incident = {"x": [0.0, -1.1 * math.sin(math.radians(self.theta_i))],
+                    "y": [0.0, 1.1 * wi[2]]}
+        if incident != self.incident_source.data:  # Bokeh would send it again
+            self.incident_source.data = incident
         changes = {"lobes": lobes, "incident": (ARROW * wi).tolist()}
         if triangles is not None and len(triangles) * 3 != len(self.lobe.triangles):
             # sent when the grid changes (a draft's is coarser), with the points it indexes
@@ -996,14 +1032,35 @@ class Server:
             _wait_for(self.port)
 
     def _session(self):
+        pn = require_panel()
         label, radiance = self.environment or (None, None)
         explorer = Explorer(self.materials, environment=radiance, environment_label=label)
         self.explorers.append(explorer)
+        doc = pn.state.curdoc
+        pn.state.onload(lambda: _send_at_once(doc))
         return explorer.layout
 
     def stop(self):
         """Stop serving (a threaded server)."""
         self.server.stop()
+
+
+def _send_at_once(doc):
+    """Have the websocket of ``doc``'s session send each message at once (TCP_NODELAY).
+
+    Tornado leaves Nagle's algorithm on: an update's message, written while the page has not
+    yet acknowledged the server's previous small reply, waited for the page's delayed ACK
+    (40 ms on Linux), which was most of the time from a slider's move to the redrawn views
+    when moves follow each other (benchmarks/bench_explore.py). Panel and Bokeh offer no
+    setting for it; their session's connections are reached as Panel itself reaches them,
+    and nothing is changed when that fails."""
+    session = getattr(getattr(doc, "session_context", None), "session", None)
+    for connection in getattr(session, "_subscribed_connections", ()):
+        socket = getattr(connection, "_socket", None)
+        try:
+            socket.set_nodelay(True)
+        except Exception:  # noqa: BLE001  (a closed or other socket: it stays as it was)
+            pass
 
 
 def _wait_for(port, timeout=60.0):

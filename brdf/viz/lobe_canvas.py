@@ -244,6 +244,9 @@ def lobe_canvas_class():
             #: set by the page while the incident arrow is dragged: theta_i and phi_i
             #: (degrees), 1 when let go (else 0), and a count that makes every one new
             drag = param.List(default=[])
+            # the page's drags reach Python at once, not after Panel's usual 50 ms wait
+            # (the page already sends them at most every DRAG_EVERY_MS)
+            _debounce = 0
             _esm = (f"const ARROW = {ARROW}, DRAG_EVERY_MS = {DRAG_EVERY_MS};\n" + _ESM)
 
         _CLASS = LobeCanvas
