@@ -43,7 +43,7 @@ from numba.extending import intrinsic
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
 from . import _kinds as K
-from . import lambert
+from . import lambert, microfacet
 
 
 #: The largest double below 1: uniform numbers lie in [0, 1).
@@ -377,6 +377,31 @@ def mixture_pdf(kinds, offs, p, step, nch, idx, n, ix, iy, iz, ox, oy, oz, sel, 
                                                     oy[j], oz[j]))
 
 
+#: Items per block of :func:`_ggx_draws`.
+DRAW_BLOCK = 64
+
+
+@inline_kernel
+def _ggx_draws(p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz, pdf, work, chosen, l, o0, o1):
+    """The GGX lobe l's draws of :func:`mixture_draw`, a block of DRAW_BLOCK items at a time:
+    every item's sample into work space on the stack, in a loop without branches or stores
+    to the caller's arrays that LLVM runs in SIMD lanes (the last item repeated past the end
+    of the list), then the samples of the items that chose lobe l into place. Drawn one item at a
+    time, the sampler's chain of square roots and divisions was a fifth of a GGX furnace's
+    render (sampled with perf); in lanes it costs half as much per sample."""
+    s = stack_array(1, DRAW_BLOCK, 4)
+    for t0 in range(0, n, DRAW_BLOCK):
+        m = min(DRAW_BLOCK, n - t0)
+        for k in range(DRAW_BLOCK):
+            j = idx[t0 + min(k, m - 1)]
+            s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3] = microfacet.sample_in_lanes(
+                microfacet.GGX, p[j * step][o0:o1], nch, ix[j], iy[j], iz[j], work[j, 1], u2[j])
+        for k in range(m):
+            j = idx[t0 + k]
+            if chosen[j] == l:
+                ox[j], oy[j], oz[j], pdf[j] = s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3]
+
+
 @inline_kernel
 def mixture_draw(kinds, offs, p, step, nch, idx, n, ix, iy, iz, u1, u2, ox, oy, oz, pdf, weight,
                  sel, work, chosen):
@@ -404,6 +429,10 @@ def mixture_draw(kinds, offs, p, step, nch, idx, n, ix, iy, iz, u1, u2, ox, oy, 
         chosen[j], work[j, 0], work[j, 1] = c, w, u
     for l in range(nl):
         kind, o0, o1 = kinds[l], offs[l], offs[l + 1]
+        if kind == K.GGX:
+            _ggx_draws(p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz, pdf, work, chosen, l,
+                       o0, o1)
+            continue
         lam = kind == K.LAMBERT
         for t in range(n):
             j = idx[t]
