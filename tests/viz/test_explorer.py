@@ -430,6 +430,21 @@ def test_a_users_map_preview_agrees_with_the_path_tracer(tmp_path):
     assert np.median(abs(traced[hit] / np.maximum(turned[hit], 1e-9) - 1)) > 0.3
 
 
+def _sky_previews_against_the_path_tracer(material):
+    """The 64-pixel sphere preview of ``material`` under the sky map from the strata and from
+    the median cut's 16 point lights, with the oracle they are judged by: the path tracer
+    (its own importance sampling of map and material, 256 spp). Returns (strata, points,
+    the median error per pixel of an image, the ratio of an image's mean to the oracle's)."""
+    traced = view_data.sphere_render(material, 64, spp=256, seed=1, lighting="sky",
+                                     max_depth=2)
+    hit = ~np.isnan(traced[..., 0])
+    strata = view_data.sphere_preview(material, 64, lights=view_data.sky_strata(16))
+    points = view_data.sphere_preview(material, 64, lights=view_data.sky_lights(16))
+    return (strata, points,
+            lambda image: np.median(abs(image[hit] / np.maximum(traced[hit], 1e-9) - 1)),
+            lambda image: image[hit].mean(0) / traced[hit].mean(0))
+
+
 @pytest.mark.parametrize("spec", ["lambert(albedo=[0.2,0.2,0.2]) + ggx(alpha=0.05)",
                                   "lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.3)"])
 def test_strata_show_a_glossy_highlight_under_the_map_as_the_path_tracer(spec):
@@ -437,13 +452,9 @@ def test_strata_show_a_glossy_highlight_under_the_map_as_the_path_tracer(spec):
     # oracle: the median cut's 16 point lights put dots on a glossy sphere (off by tens of
     # per cent per pixel), its strata with the material's sampler do not
     model = brdf.parse(spec)
-    traced = view_data.sphere_render(model, 64, spp=256, seed=1, lighting="sky", max_depth=2)
-    hit = ~np.isnan(traced[..., 0])
-    error = lambda image: np.median(abs(image[hit] / np.maximum(traced[hit], 1e-9) - 1))
-    strata = view_data.sphere_preview(model, 64, lights=view_data.sky_strata(16))
-    points = view_data.sphere_preview(model, 64, lights=view_data.sky_lights(16))
+    strata, points, error, mean_ratio = _sky_previews_against_the_path_tracer(model)
     assert error(strata) < 0.08, error(strata)
-    np.testing.assert_allclose(strata[hit].mean(0) / traced[hit].mean(0), 1.0, atol=0.03)
+    np.testing.assert_allclose(mean_ratio(strata), 1.0, atol=0.03)
     if "0.05" in spec:
         assert error(points) > 0.3
     # the same pixels draw the same directions at every call: the noise stands still
@@ -489,15 +500,10 @@ def test_a_tables_highlight_under_the_map_as_the_path_tracer():
     # the path tracer (its own tabulated sampling of tables, 256 spp) is the oracle: the
     # median cut's 16 point lights put dots on a glossy table (off by 55 % per pixel), the
     # strata with the table's sampler do not (5 %)
-    table = _glossy_table()
-    traced = view_data.sphere_render(table, 64, spp=256, seed=1, lighting="sky", max_depth=2)
-    hit = ~np.isnan(traced[..., 0])
-    error = lambda image: np.median(abs(image[hit] / np.maximum(traced[hit], 1e-9) - 1))
-    strata = view_data.sphere_preview(table, 64, lights=view_data.sky_strata(16))
-    points = view_data.sphere_preview(table, 64, lights=view_data.sky_lights(16))
+    strata, points, error, mean_ratio = _sky_previews_against_the_path_tracer(_glossy_table())
     assert error(strata) < 0.08, error(strata)
     assert error(points) > 0.3, error(points)
-    np.testing.assert_allclose(strata[hit].mean(0) / traced[hit].mean(0), 1.0, atol=0.03)
+    np.testing.assert_allclose(mean_ratio(strata), 1.0, atol=0.03)
 
 
 def test_to_rgba_encodes_srgb_and_leaves_the_background_transparent():
