@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel
+from .._jit import inline_kernel, kernel, parallel_kernel, sparse_product
 from ..errors import InputError, ParameterError
 from ..models import _kinds as K
 from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
@@ -708,7 +708,9 @@ def _fold_row(row, v, out, d, scale, target, weight, offset, sums):
         sums[3 + c] += g * v
         out[0, c] = g
     for j in range(SLOTS):
-        sums[6 + j] += out[0, 0] * d[j, 0, 0] + out[0, 1] * d[j, 0, 1] + out[0, 2] * d[j, 0, 2]
+        sums[6 + j] += (sparse_product(out[0, 0], d[j, 0, 0])
+                        + sparse_product(out[0, 1], d[j, 0, 1])
+                        + sparse_product(out[0, 2], d[j, 0, 2]))
 
 
 #: The loop of :func:`_fold_rows` over a block's rows, for each family (``{call}``: its
