@@ -204,6 +204,22 @@ def fetch_add(typingctx, counter, value):
     return types.int64(counter, value), codegen
 
 
+@intrinsic
+def sparse_product(typingctx, a, b):
+    """``a * b`` of two float64, which LLVM may take as 0 where it knows a factor to be 0 (the
+    product's ``nnan`` and ``ninf`` flags say that neither is NaN or infinite): where a loop
+    contracts a row of derivatives that a kernel sets only in part (the rest zeroed, ``d[j, k,
+    c]`` of a family's ``grad_``), the products with the entries never set drop out of it.
+    The caller vouches that a NaN or infinite factor meeting such a 0 may count as 0."""
+    if not (a == types.float64 and b == types.float64):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.fmul(args[0], args[1], flags=("nnan", "ninf", *sorted(FASTMATH)))
+
+    return types.float64(types.float64, types.float64), codegen
+
+
 # One line on stderr before a group of kernels first compiles in a process, since that takes
 # a minute and looks hung (brdf.kernel_groups): numba tells of compiles only on a disk-cache
 # miss, so a warm cache runs as before.

@@ -23,10 +23,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel
+from .._jit import inline_kernel, kernel, parallel_kernel, sparse_product
 from ..errors import InputError, ParameterError
-from ..models._kernels import (lobe_derivatives, lobe_eval_block, lobe_grad_rows,
-                                stack_array, with_last_axis)
+from ..models import _kinds as K
+from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
+                                lobe_grad_rows, rows_dispatcher, stack_array, with_last_axis)
 from ..models.base import Component, Param, Sum
 from . import losses
 
@@ -240,6 +241,11 @@ class Problem:
                 if len(positions) == nch > 1:
                     for c, slots in enumerate(positions):
                         self._chan[slots] = c
+        # the one lobe besides Lambertian ones whose derivatives the pass folds into its sums
+        # row by row (see _fold_blocks), or -1
+        others = [l for l, kind in enumerate(self._kinds) if kind != K.LAMBERT]
+        self._fold_lobe = others[0] if (nch == 3 and len(others) == 1 and self._offsets[
+            others[0] + 1] - self._offsets[others[0]] <= SLOTS) else -1
         per_sample = 8 * len(self._packed) * nch
         self._gradient_block = int(np.clip(GRADIENT_BLOCK_BYTES // per_sample,
                                            MIN_GRADIENT_BLOCK, GRADIENT_BLOCK))
@@ -485,8 +491,8 @@ class Problem:
         loss = np.zeros((blocks, self.channels))
         dq = np.zeros((blocks, len(params)))
         _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self._chan,
-                            self.channels, s.wi, s.wo, t.scale, t.target, t.weight, t.offset,
-                            block, loss, dq)
+                            self._fold_lobe, self.channels, s.wi, s.wo, t.scale, t.target,
+                            t.weight, t.offset, block, loss, dq)
         grad = self._in_x(dq.sum(axis=0) / t.norm, x)
         return float(loss.sum(axis=0).sum() / t.norm), grad
 
@@ -601,11 +607,12 @@ def _score_sums(f, scale, target, weight, offset, block, out):
 
 
 @parallel_kernel
-def _loss_gradient_sums(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
-                        offset, block, loss, grad):
+def _loss_gradient_sums(kinds, offs, params, needed, chan, lobe, nch, wi, wo, scale, target,
+                        weight, offset, block, loss, grad):
     """For the one packed parameter vector ``params``: ``loss[b, c]`` as in :func:`_loss_sums`,
     and ``grad[b, j]`` = its derivative, summed over channels, in ``params[j]`` for each j with
-    ``needed[j]`` (``chan[j]``: the one channel that params[j] acts on, or -1).
+    ``needed[j]`` (``chan[j]``: the one channel that params[j] acts on, or -1; ``lobe``: see
+    :func:`_group_loss_gradient`).
 
     The blocks run in groups of :data:`GRADIENT_GROUP`, each group with one set of work arrays
     (see :func:`_group_loss_gradient`). The sums of a block do not depend on its group.
@@ -622,38 +629,48 @@ def _loss_gradient_sums(kinds, offs, params, needed, chan, nch, wi, wo, scale, t
         fs = np.empty((rows, nch))
         terms = np.empty((rows, nch))
         ds = np.zeros((npar, rows, nch))
-        _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi[lo:hi], wo[lo:hi],
-                             scale[lo:hi], target[lo:hi], weight[lo:hi], offset, block,
-                             loss[b0:b1], grad[b0:b1], fs, terms, ds)
+        _group_loss_gradient(kinds, offs, params, needed, chan, lobe, nch, wi[lo:hi],
+                             wo[lo:hi], scale[lo:hi], target[lo:hi], weight[lo:hi], offset,
+                             block, loss[b0:b1], grad[b0:b1], fs, terms, ds)
 
 
 #: Rows of a sub-block of :func:`_group_loss_gradient` and the packed parameters its work
 #: space on the stack holds (16 x 64 x 3 doubles of derivatives, 24 kB: in the first-level
 #: cache with the rows it reads).
 SUB_ROWS, SLOTS = 64, 16
+#: Sums of a block of :func:`_fold_rows` (see :func:`_fold_row`).
+FOLD_SUMS = 6 + SLOTS
+
+
+@inline_kernel
+def _residual(f, s, t, w, offset):
+    """A sample's term w (g(s f) - t)^2 and its derivative in f, 2 w r g'(s f) s, with
+    r = g(s f) - t and g' = 1, or 1 / (offset + s f) for g = log(offset + .)
+    (brdf.fitting.losses.Terms)."""
+    if offset > 0.0:
+        v = offset + s * f
+        r = math.log(v) - t
+        return w * r * r, 2.0 * w * r * s / v
+    r = s * f - t
+    return w * r * r, 2.0 * w * r * s
 
 
 @inline_kernel
 def _residual_weights(f, scale, target, weight, offset, m, nch, acc, g):
-    """Add weight_k (g(s f) - t)^2 of each sample k < m and channel c < nch to ``acc[k, c]``
-    and set ``g[k, c]`` to its derivative in f, 2 w r g'(s f) s, with r = g(s f) - t and
-    g' = 1, or 1 / (offset + s f) for g = log(offset + .) (brdf.fitting.losses.Terms); ``g``
-    may be ``f``. The test of the offset stands outside the loops, which then vectorise."""
+    """Add the term (:func:`_residual`) of each sample k < m and channel c < nch to
+    ``acc[k, c]`` and set ``g[k, c]`` to its derivative in f; ``g`` may be ``f``. The test of
+    the offset stands outside the loops (the same test inside is then folded away), which then
+    vectorise."""
     if offset > 0.0:
         for k in range(m):
             for c in range(nch):
-                s = scale[k, c]
-                v = offset + s * f[k, c]
-                r = math.log(v) - target[k, c]
-                acc[k, c] += weight[k] * r * r
-                g[k, c] = 2.0 * weight[k] * r * s / v
+                term, g[k, c] = _residual(f[k, c], scale[k, c], target[k, c], weight[k], offset)
+                acc[k, c] += term
     else:
         for k in range(m):
             for c in range(nch):
-                s = scale[k, c]
-                r = s * f[k, c] - target[k, c]
-                acc[k, c] += weight[k] * r * r
-                g[k, c] = 2.0 * weight[k] * r * s
+                term, g[k, c] = _residual(f[k, c], scale[k, c], target[k, c], weight[k], offset)
+                acc[k, c] += term
 
 
 @inline_kernel
@@ -666,13 +683,120 @@ def _column_sums(x, m, out):
         out[c] = total
 
 
+@inline_kernel
+def _fold_start(iz, oz, diffuse, out, d):
+    """Start a row of :func:`_fold_rows`: ``out[0]`` = the Lambertian lobes' f (their summed
+    albedos ``diffuse`` times f per unit albedo), ``d`` zeroed; returns f per unit albedo."""
+    v = lambert.per_albedo(iz, oz)
+    for c in range(3):
+        out[0, c] = diffuse[c] * v
+    for j in range(SLOTS):
+        for c in range(3):
+            d[j, 0, c] = 0.0
+    return v
+
+
+@inline_kernel
+def _fold_row(row, v, out, d, scale, target, weight, offset, sums):
+    """Fold a row's f ``out[0]`` and derivatives ``d[j, 0, c]`` of the lobe into ``sums``: the
+    terms (:func:`_residual`) into ``sums[c]``, their derivative in the Lambertian albedo of
+    channel c (f per unit albedo ``v``) into ``sums[3 + c]`` and in the lobe's packed
+    parameter j into ``sums[6 + j]`` (channels summed)."""
+    for c in range(3):
+        term, g = _residual(out[0, c], scale[row, c], target[row, c], weight[row], offset)
+        sums[c] += term
+        sums[3 + c] += g * v
+        out[0, c] = g
+    for j in range(SLOTS):
+        sums[6 + j] += (sparse_product(out[0, 0], d[j, 0, 0])
+                        + sparse_product(out[0, 1], d[j, 0, 1])
+                        + sparse_product(out[0, 2], d[j, 0, 2]))
+
+
+#: The loop of :func:`_fold_rows` over a block's rows, for each family (``{call}``: its
+#: ``grad_`` at the row, into ``out[0]`` and ``d[:, 0]``, which stay in registers).
+_FOLD_LOOP = """\
+k = 0
+for row in range(wi.shape[0]):
+    ix, iy, iz = wi[row, 0], wi[row, 1], wi[row, 2]
+    ox, oy, oz = wo[row, 0], wo[row, 1], wo[row, 2]
+    v = _fold_start(iz, oz, diffuse, out, d)
+    {call}
+    _fold_row(row, v, out, d, scale, target, weight, offset, sums)"""
+
+for _name, _value in family_namespace().items():
+    if globals().setdefault(_name, _value) is not _value:
+        raise ImportError(f"family module name {_name!r} is taken in brdf.fitting.problem")
+#: The generated source of :func:`_fold_rows` (compiled under this file's name, so that numba
+#: caches it beside the file's other kernels).
+FOLD_SOURCE = rows_dispatcher(
+    "_fold_rows", "kind, q, nch, wi, wo, diffuse, scale, target, weight, offset, out, d, sums",
+    "grad_", _FOLD_LOOP,
+    "Add to ``sums`` (see :func:`_fold_row`) every row of a block of a model of Lambertian\n"
+    "    lobes (summed albedos ``diffuse``) and one lobe of family ``kind``: f and its\n"
+    "    derivatives at a row are folded into the sums at once, never stored.")
+exec(compile(FOLD_SOURCE, __file__, "exec"), globals())
+
+
 @kernel
-def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, target, weight,
-                         offset, block, loss, grad, fs, terms, ds):
+def _fold_blocks(kinds, offs, params, needed, lobe, wi, wo, scale, target, weight, block, loss,
+                 grad):
+    """:func:`_group_loss_gradient` for three channels and a model of Lambertian lobes and one
+    lobe ``lobe`` of at most SLOTS packed parameters: ``loss[b, c]`` and ``grad[b, j]`` of each
+    block by :func:`_fold_rows`, whose loop over the rows holds the whole chain rule, each
+    row's derivatives in registers, and vectorises.
+
+    For the metrics without a logarithm (offset 0, which LLVM folds into the terms: with the
+    logarithm, the loop holds a call of log and does not vectorise anyway). Each block's sums
+    run over its rows in a fixed order whatever the number of threads."""
+    n = wi.shape[0]
+    diffuse = stack_array(1, 1, 3)[0, 0]
+    out = stack_array(1, 1, 3)[0]
+    d = stack_array(SLOTS, 1, 3)
+    sums = stack_array(1, 1, FOLD_SUMS)[0, 0]
+    for c in range(3):
+        diffuse[c] = 0.0
+    for l in range(kinds.shape[0]):
+        if kinds[l] == K.LAMBERT:
+            for c in range(3):
+                diffuse[c] += params[offs[l] + c]
+    kind = kinds[lobe]
+    q = params[offs[lobe]:offs[lobe + 1]]
+    for b in range(loss.shape[0]):
+        for i in range(FOLD_SUMS):
+            sums[i] = 0.0
+        lo = b * block
+        hi = min(n, lo + block)
+        a = with_last_axis(wi[lo:hi], 3)
+        e = with_last_axis(wo[lo:hi], 3)
+        s = with_last_axis(scale[lo:hi], 3)
+        t = with_last_axis(target[lo:hi], 3)
+        w = weight[lo:hi]
+        _fold_rows(kind, q, 3, a, e, diffuse, s, t, w, 0.0, out, d, sums)
+        for c in range(3):
+            loss[b, c] = sums[c]
+        for j in range(params.shape[0]):
+            grad[b, j] = 0.0
+        for l in range(kinds.shape[0]):
+            if kinds[l] == K.LAMBERT:
+                for c in range(3):
+                    if needed[offs[l] + c]:
+                        grad[b, offs[l] + c] = sums[3 + c]
+        for j in range(offs[lobe + 1] - offs[lobe]):
+            if needed[offs[lobe] + j]:
+                grad[b, offs[lobe] + j] = sums[6 + j]
+
+
+@kernel
+def _group_loss_gradient(kinds, offs, params, needed, chan, lobe, nch, wi, wo, scale, target,
+                         weight, offset, block, loss, grad, fs, terms, ds):
     """Blocks of :func:`_loss_gradient_sums` (``block`` rows each, from the first row of
     ``wi``): ``loss[b, c]`` and ``grad[b, j]``.
 
-    One pass per lobe gives f with its derivatives df/dq_j (each family's ``grad_`` kernel:
+    With three channels, a metric without a logarithm (``offset`` 0) and Lambertian lobes
+    besides the one lobe ``lobe`` (>= 0) that holds at most SLOTS packed parameters,
+    :func:`_fold_blocks` runs. Otherwise one pass per lobe
+    gives f with its derivatives df/dq_j (each family's ``grad_`` kernel:
     one evaluation of each formula), then the chain rule through the terms
     (:func:`_residual_weights`) times df/dq_j. With three channels and at most SLOTS packed
     parameters that runs on SUB_ROWS rows at a time in work space on the stack, where LLVM
@@ -686,6 +810,10 @@ def _group_loss_gradient(kinds, offs, params, needed, chan, nch, wi, wo, scale, 
     """
     n = wi.shape[0]
     npar = params.shape[0]
+    if nch == 3 and lobe >= 0 and offset == 0.0:
+        _fold_blocks(kinds, offs, params, needed, lobe, wi, wo, scale, target, weight, block,
+                     loss, grad)
+        return
     if nch == 3 and npar <= SLOTS:
         f = stack_array(1, SUB_ROWS, 3)[0]
         g = stack_array(1, SUB_ROWS, 3)[0]

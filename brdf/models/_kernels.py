@@ -22,6 +22,9 @@ scalar kernels (wi, wo in the local frame; the dispatchers below are generated f
   d) -> bool``: ``eval_`` and ``grad_`` at every row k of a block (``wi``, ``wo`` (m, 3)), where
   the family has tests of constant parameters to take out of the loop over rows so that it
   vectorises (see ``lobe_eval_block``); False leaves the rows to ``eval_`` and ``grad_``.
+- optionally ``rows_split_(q, nch) -> bool``: that test of constant parameters itself, for loops
+  over rows generated elsewhere (``rows_dispatcher``), which are then written once under each
+  outcome of the test.
 
 A kernel may take any of these parameters by name, and a module serving several families (GGX
 and Beckmann, Phong's two forms) takes the row's variant as an extra first parameter.
@@ -234,6 +237,43 @@ def _row_branches(rows_hook, hook, params):
             raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
         out.append((kind, body))
     return _merged(out)
+
+
+def rows_dispatcher(name, params, hook, loop, doc):
+    """Source of an inline kernel ``name(params)`` that runs ``loop`` for the family ``kind`` (a
+    parameter): for callers whose loop over rows does more per row than one hook can, such as
+    fitting's loss-and-gradient pass, which folds each row's derivatives into its sums at once.
+
+    ``loop`` is Python source whose ``{call}`` stands for the family's ``hook`` called with the
+    names of its parameters (a variant as first parameter, as in the dispatchers above): the
+    loop defines those it does not receive. A delta family's call is ``pass`` (its eval and
+    derivatives are 0). A family with ``rows_split_``, a test of its constant parameters that
+    its per-pair kernels make (a Fresnel term or none), gets the loop twice, under each outcome
+    of the test: inlined below it, the test in the loop is known and folded away, so the loop
+    holds no branch and vectorises."""
+    names = params.split(", ")
+    out = []
+    for row in K.FAMILIES:
+        kind, _, module_name, _ = row
+        module = _FAMILY_MODULES[module_name]
+        if _is_delta_family(kind, module):
+            call = "pass  # a delta lobe's eval is 0, and so are its derivatives"
+        elif hasattr(module, hook):
+            call = _hook_call(row, module, hook, names + ["k", "ix", "iy", "iz", "ox", "oy", "oz",
+                                                           "out", "d"])
+        else:
+            raise ImportError(f"family {kind}: brdf.models.{module_name} lacks the kernel {hook}")
+        body = loop.format(call=call)
+        if hasattr(module, "rows_split_") and not _is_delta_family(kind, module):
+            inner = "\n".join("    " + line for line in body.split("\n"))
+            body = f"if {_hook_call(row, module, 'rows_split_', names)}:\n{inner}\nelse:\n{inner}"
+        out.append((kind, body))
+    return _function("inline_kernel", name, params, doc, _chain(_merged(out), None))
+
+
+def family_namespace():
+    """The names generated sources use: ``K`` (the family table) and each family module."""
+    return {"K": K, **_FAMILY_MODULES}
 
 
 def _generate():

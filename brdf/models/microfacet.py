@@ -396,6 +396,13 @@ def _cos_d(ix, iy, iz, hx, hy, hz):
 
 
 @inline_kernel
+def rows_split_(q, nch):
+    """Whether the lobe has no Fresnel term: the test ``eval_`` and ``grad_`` make at every pair
+    (see ``brdf.models._kernels.rows_dispatcher``)."""
+    return q[nch + 3] == NONE
+
+
+@inline_kernel
 def _eval_at(dist, q, nch, plain, ix, iy, iz, ox, oy, oz, out, k):
     """``eval_``, with F = 1 when ``plain`` (the lobe has no Fresnel term)."""
     v, _, _, hx, hy, hz = _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz)
@@ -410,7 +417,7 @@ def _eval_at(dist, q, nch, plain, ix, iy, iz, ox, oy, oz, out, k):
 
 @inline_kernel
 def eval_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k):
-    _eval_at(dist, q, nch, q[nch + 3] == NONE, ix, iy, iz, ox, oy, oz, out, k)
+    _eval_at(dist, q, nch, rows_split_(q, nch), ix, iy, iz, ox, oy, oz, out, k)
 
 
 @inline_kernel
@@ -418,7 +425,7 @@ def eval_rows_(dist, q, nch, wi, wo, out):
     """``eval_`` at every row of ``wi`` and ``wo`` for a lobe without a Fresnel term (the test
     made once, the loop over the rows then holds no branch or call and vectorises); returns
     False, leaving the rows to ``eval_``, for a lobe with one."""
-    if q[nch + 3] != NONE:
+    if not rows_split_(q, nch):
         return False
     for k in range(wi.shape[0]):
         _eval_at(dist, q, nch, True, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2],
@@ -455,14 +462,14 @@ def grad_(dist, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
     """Add f to ``out[k, :nch]`` and set ``d[j, k, c]`` to df_c / dq[j] for the parameters f
     depends on: Walter et al. 2007, eq. 20, differentiated in ks, alpha_x, alpha_y (through
     :func:`ndf_d`, :func:`visibility_d`) and the Fresnel parameters (:func:`fresnel_d`)."""
-    _grad_at(dist, q, nch, q[nch + 3] == NONE, ix, iy, iz, ox, oy, oz, out, k, d)
+    _grad_at(dist, q, nch, rows_split_(q, nch), ix, iy, iz, ox, oy, oz, out, k, d)
 
 
 @inline_kernel
 def grad_rows_(dist, q, nch, wi, wo, out, d):
     """``grad_`` at every row of ``wi`` and ``wo`` for a lobe without a Fresnel term, else False
     (see :func:`eval_rows_`)."""
-    if q[nch + 3] != NONE:
+    if not rows_split_(q, nch):
         return False
     for k in range(wi.shape[0]):
         _grad_at(dist, q, nch, True, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2],

@@ -112,9 +112,12 @@ def per_pair_loss_and_gradient(p, x):
     return value, p._in_x(np.einsum("kc,jkc->j", dl, d) / t.norm, x)
 
 
-# RGB models of at most 16 packed parameters take the pass on the stack, others the heap's
+# RGB models of Lambertian lobes and one other lobe fold each row into the sums (with and
+# without a Fresnel term, two Lambertian lobes); other RGB models of at most 16 packed
+# parameters take the pass on the stack (two GGX-like lobes), the rest the heap's
 @pytest.mark.parametrize("spec,loss,shared", [(SPECS[0], "cosine-l2", ("lambert.albedo",)),
                                                (SPECS[1], "log", ()), (SPECS[2], "l2", ("ks",)),
+                                               (SPECS[6] + " + lambert(albedo=0.1)", "log", ()),
                                                (SPECS[0] + " + beckmann", "relative-l2", ())])
 def test_loss_gradient_pass_agrees_with_per_pair_derivatives(rgb_table, spec, loss, shared):
     import numba
