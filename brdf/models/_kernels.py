@@ -219,23 +219,35 @@ _ROW_DISPATCHERS = (
 _ROW = "ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]"
 
 
-def _row_branches(rows_hook, hook, params):
-    """``(condition, body)`` of a rows dispatcher for each family, as :func:`_branches`."""
-    out = []
+_DELTA_ROW = "pass  # a delta lobe's eval is 0, and so are its derivatives"
+
+
+def _row_calls(hook, params):
+    """``(row, module, call)`` for each family: the source of its ``hook`` called with
+    ``params`` by name, or None for a delta lobe (whose eval and derivatives are 0)."""
     for row in K.FAMILIES:
         kind, _, name, _ = row
         module = _FAMILY_MODULES[name]
         if _is_delta_family(kind, module):
-            body = "pass  # a delta lobe's eval is 0, and so are its derivatives"
+            yield row, module, None
         elif hasattr(module, hook):
-            call = _hook_call(row, module, hook, params + ["k", *_ROW.split(" = ")[0].split(", ")])
+            yield row, module, _hook_call(row, module, hook, params)
+        else:
+            raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
+
+
+def _row_branches(rows_hook, hook, params):
+    """``(condition, body)`` of a rows dispatcher for each family, as :func:`_branches`."""
+    out = []
+    for row, module, call in _row_calls(hook, params + ["k", *_ROW.split(" = ")[0].split(", ")]):
+        if call is None:
+            body = _DELTA_ROW
+        else:
             body = f"for k in range(wi.shape[0]):\n    {_ROW}\n    {call}"
             if hasattr(module, rows_hook):
                 loop = "\n".join("    " + line for line in body.split("\n"))
                 body = f"if not {_hook_call(row, module, rows_hook, params)}:\n{loop}"
-        else:
-            raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
-        out.append((kind, body))
+        out.append((row[0], body))
     return _merged(out)
 
 
@@ -253,21 +265,13 @@ def rows_dispatcher(name, params, hook, loop, doc):
     holds no branch and vectorises."""
     names = params.split(", ")
     out = []
-    for row in K.FAMILIES:
-        kind, _, module_name, _ = row
-        module = _FAMILY_MODULES[module_name]
-        if _is_delta_family(kind, module):
-            call = "pass  # a delta lobe's eval is 0, and so are its derivatives"
-        elif hasattr(module, hook):
-            call = _hook_call(row, module, hook, names + ["k", "ix", "iy", "iz", "ox", "oy", "oz",
-                                                           "out", "d"])
-        else:
-            raise ImportError(f"family {kind}: brdf.models.{module_name} lacks the kernel {hook}")
-        body = loop.format(call=call)
-        if hasattr(module, "rows_split_") and not _is_delta_family(kind, module):
+    for row, module, call in _row_calls(hook, names + ["k", "ix", "iy", "iz", "ox", "oy", "oz",
+                                                       "out", "d"]):
+        body = loop.format(call=_DELTA_ROW if call is None else call)
+        if call is not None and hasattr(module, "rows_split_"):
             inner = "\n".join("    " + line for line in body.split("\n"))
             body = f"if {_hook_call(row, module, 'rows_split_', names)}:\n{inner}\nelse:\n{inner}"
-        out.append((kind, body))
+        out.append((row[0], body))
     return _function("inline_kernel", name, params, doc, _chain(_merged(out), None))
 
 
