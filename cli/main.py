@@ -12,7 +12,8 @@ import signal
 import sys
 import textwrap
 
-from . import arguments, commands, demo, explore, export, fit_images, precompile, render
+from . import (arguments, commands, demo, explore, export, fit_images, precompile,
+               process_exit, render)
 from . import viz as viz_commands
 from .output import Output
 
@@ -342,6 +343,14 @@ def _load_plugins(args):
             _error(text if text.startswith("plugin ") else f"plugin {source}: {text}")
             return EXIT_USAGE
     return 0
+
+
+def run():
+    """The ``brdf-fit`` console script: :func:`main` on the process arguments; the process then
+    ends without the interpreter's teardown of its modules (:mod:`brdf_cli.process_exit`)."""
+    status = main()
+    process_exit.arm(status)
+    return status
 
 
 def main(argv=None):

@@ -234,3 +234,43 @@ def test_script_check_statuses_and_json():
     assert json.loads(failing.stdout)["checks"][1]["passed"] is False
     help_ = run_script("--help")
     assert help_.returncode == 0 and "SUBCOMMAND" in help_.stdout
+
+
+def test_script_output_is_whole_when_the_process_skips_its_teardown(tmp_path):
+    # the script ends through os._exit (brdf_cli.process_exit): what it wrote must all arrive,
+    # through a pipe and into a file, with the command's status
+    proc = run_script("eval", "lambert(albedo=0.5)", "--wi", "0,0", "--wo", "0,0", "--json")
+    assert proc.returncode == 0 and json.loads(proc.stdout)
+    out = tmp_path / "models.txt"
+    with open(out, "w") as f:
+        status = subprocess.run([SCRIPT, "models"], stdout=f, timeout=300).returncode
+    assert status == 0
+    assert out.read_text() == subprocess.run([SCRIPT, "models"], capture_output=True,
+                                             text=True, timeout=300).stdout
+    assert out.read_text().count("\n") > 10
+
+
+def _exit_of(code):
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+
+
+def test_process_exit_runs_after_every_other_exit_handler():
+    # armed, the status is the command's and other modules' exit handlers still run first
+    proc = _exit_of("import atexit, sys, brdf_cli, logging\n"
+                    "from brdf_cli import process_exit\n"
+                    "atexit.register(lambda: print('their handler ran', flush=True))\n"
+                    "logging.basicConfig(stream=sys.stderr)\n"
+                    "logging.getLogger('x').warning('logged')\n"
+                    "process_exit.arm(3)\n"
+                    "print('unflushed', end='')\n"
+                    "sys.exit(0)")
+    assert proc.returncode == 3
+    assert proc.stdout == "unflushedtheir handler ran\n"
+    assert "logged" in proc.stderr
+    # not armed (a Python session that imported brdf_cli), the exit is Python's own
+    proc = _exit_of("import sys, brdf_cli\nsys.exit(5)")
+    assert proc.returncode == 5 and proc.stderr == ""
+    proc = _exit_of("import sys, brdf_cli\nfrom brdf_cli import process_exit\n"
+                    "process_exit.arm('text')\nsys.exit('text')")
+    assert proc.returncode == 1 and proc.stderr == "text\n"
