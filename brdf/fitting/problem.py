@@ -432,8 +432,8 @@ class Problem:
                           for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
         lobes = np.ascontiguousarray(lobes)  # one kernel type, C layout, for any lobe count
         out = np.zeros((blocks, len(P), self.channels))
-        _loss_sums(self._kinds, self._offsets, P, lobes, self.channels, s.wi, s.wo, t.scale,
-                   t.target, t.weight, t.offset, BLOCK, out)
+        _loss_sums(self._kinds, self._offsets, P, lobes, self._fold_lobe, self.channels, s.wi,
+                   s.wo, t.scale, t.target, t.weight, t.offset, BLOCK, out)
         losses = out.sum(axis=0) / t.norm
         if self._admissible:
             losses[self._refused(P)] = np.inf
@@ -548,17 +548,27 @@ class Problem:
 
 
 @parallel_kernel
-def _loss_sums(kinds, offs, params, lobes, nch, wi, wo, scale, target, weight, offset, block,
-               out):
+def _loss_sums(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, weight, offset,
+               block, out):
     """``out[b, j, c]`` = sum over the samples k of block ``b`` of
     weight_k (g(scale_kc f_j(wi_k, wo_k)_c) - target_kc)^2, for each parameter row ``j``; g is
     the identity when ``offset`` is 0, else log(offset + .) (see brdf.fitting.losses.Terms).
 
-    A model is a sum of lobes, so row j > 0 evaluates only the lobes ``lobes[j]`` marks (those
-    whose parameters differ from row 0's) and reuses row 0's values of the others.
+    With three channels, no logarithm and Lambertian lobes besides the one lobe ``lobe`` (>= 0),
+    each row's f is folded into its terms as it comes (:func:`_fold_loss_blocks`). Otherwise a
+    block's f is stored, then scored; a model is a sum of lobes, so row j > 0 evaluates only
+    the lobes ``lobes[j]`` marks (those whose parameters differ from row 0's) and reuses row
+    0's values of the others.
     """
     n = wi.shape[0]
     nl = kinds.shape[0]
+    if nch == 3 and lobe >= 0 and offset == 0.0:
+        for b in prange(out.shape[0]):
+            lo = b * block
+            hi = min(n, lo + block)
+            _fold_loss_blocks(kinds, offs, params, lobe, wi[lo:hi], wo[lo:hi], scale[lo:hi],
+                              target[lo:hi], weight[lo:hi], out[b])
+        return
     for b in prange(out.shape[0]):
         lo = b * block
         hi = min(n, lo + block)
@@ -736,6 +746,58 @@ FOLD_SOURCE = rows_dispatcher(
     "    lobes (summed albedos ``diffuse``) and one lobe of family ``kind``: f and its\n"
     "    derivatives at a row are folded into the sums at once, never stored.")
 exec(compile(FOLD_SOURCE, __file__, "exec"), globals())
+
+
+#: The loop of :func:`_fold_loss_rows` over a block's rows, for each family (``{call}``: its
+#: ``eval_`` at the row, adding to ``out[0]``, which stays in registers).
+_FOLD_LOSS_LOOP = """\
+k = 0
+for row in range(wi.shape[0]):
+    ix, iy, iz = wi[row, 0], wi[row, 1], wi[row, 2]
+    ox, oy, oz = wo[row, 0], wo[row, 1], wo[row, 2]
+    v = lambert.per_albedo(iz, oz)
+    for c in range(3):
+        out[0, c] = diffuse[c] * v
+    {call}
+    for c in range(3):
+        sums[c] += _residual(out[0, c], scale[row, c], target[row, c], weight[row], 0.0)[0]"""
+
+#: The generated source of :func:`_fold_loss_rows` (compiled under this file's name, as
+#: :data:`FOLD_SOURCE`).
+FOLD_LOSS_SOURCE = rows_dispatcher(
+    "_fold_loss_rows", "kind, q, nch, wi, wo, diffuse, scale, target, weight, out, sums",
+    "eval_", _FOLD_LOSS_LOOP,
+    "Add to ``sums[c]`` the terms (:func:`_residual`, no logarithm) of every row of a block of\n"
+    "    a model of Lambertian lobes (summed albedos ``diffuse``) and one lobe of family\n"
+    "    ``kind``: f at a row is scored at once, never stored.")
+exec(compile(FOLD_LOSS_SOURCE, __file__, "exec"), globals())
+
+
+@kernel
+def _fold_loss_blocks(kinds, offs, params, lobe, wi, wo, scale, target, weight, out):
+    """``out[j, c]``: the terms of one block (the rows of ``wi``) for each parameter row j of
+    ``params``, by :func:`_fold_loss_rows` (three channels, Lambertian lobes and the one lobe
+    ``lobe``, no logarithm), whose loop over the rows vectorises. The sums run over the rows in
+    a fixed order whatever the number of threads."""
+    diffuse = stack_array(1, 1, 3)[0, 0]
+    f = stack_array(1, 1, 3)[0]
+    sums = stack_array(1, 1, 3)[0, 0]
+    a = with_last_axis(wi, 3)
+    e = with_last_axis(wo, 3)
+    s = with_last_axis(scale, 3)
+    t = with_last_axis(target, 3)
+    for j in range(params.shape[0]):
+        for c in range(3):
+            diffuse[c] = 0.0
+            sums[c] = 0.0
+        for l in range(kinds.shape[0]):
+            if kinds[l] == K.LAMBERT:
+                for c in range(3):
+                    diffuse[c] += params[j, offs[l] + c]
+        q = params[j, offs[lobe]:offs[lobe + 1]]
+        _fold_loss_rows(kinds[lobe], q, 3, a, e, diffuse, s, t, weight, f, sums)
+        for c in range(3):
+            out[j, c] = sums[c]
 
 
 @kernel

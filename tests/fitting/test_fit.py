@@ -136,6 +136,30 @@ def test_loss_gradient_pass_agrees_with_per_pair_derivatives(rgb_table, spec, lo
     assert again[0] == value and np.array_equal(again[1], grad)
 
 
+# the loss alone folds each row into its terms for the same models as the gradient pass (every
+# SPECS entry with Lambertian lobes, one other lobe and three channels); the rest store the rows
+@pytest.mark.parametrize("spec", SPECS)
+@pytest.mark.parametrize("loss", ["cosine-l2", "l2", "log"])
+def test_loss_pass_agrees_with_values_scored_apart(rgb_table, spec, loss):
+    import numba
+    p = Problem(rgb_table, spec, loss=loss)
+    rng = np.random.default_rng(3)
+    X = np.array([p.x0 + 0.2 * (x - p.x0) for x in p.random_x(rng, 4)])
+    X[2] = X[0]  # rows equal to the first reuse nothing they should not
+    losses_ = p.channel_losses(X)
+    for x, got in zip(X, losses_):
+        ref = p.score(p.model_values(x), p.terms)  # f stored, then the terms in numpy's order
+        assert np.all(np.abs(got - ref) <= 1e-12 * np.abs(ref).max()), (got, ref)
+        assert got.sum() == pytest.approx(per_pair_loss_and_gradient(p, x)[0], rel=1e-12)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:  # the same bits on one thread
+        again = p.channel_losses(X)
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(again, losses_)
+
+
 def test_difference_rows_stay_inside_the_bounds(rgb_table):
     p = Problem(rgb_table, "lambert(albedo=0) + ggx(alpha=0.3)")  # albedo at its lower bound
     rows, width = p.difference_rows(p.x0)
