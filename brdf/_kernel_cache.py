@@ -189,6 +189,15 @@ def _typing_arrays_directly(dispatcher):
     return dispatcher
 
 
+def stamped_marker(dispatcher, name):
+    """Path of a marker file ``name`` beside the cached kernels of ``dispatcher``, stamped with
+    the package's kernel sources (an edit of any of them leaves the marker behind, unread), or
+    None for a dispatcher without a disk cache. A marker says something of the cache that
+    numba does not record, such as which kernels a command compiled ahead of use."""
+    folder = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
+    return None if folder is None else os.path.join(folder, f"{name}-{_STAMP[:20]}")
+
+
 def quick_loading(dispatcher):
     """``dispatcher`` (with ``cache=True``), loading its cached machine code without numba's
     full set-up (and typing its array arguments without importing ``numpy.ma``); its cache

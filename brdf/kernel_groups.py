@@ -27,8 +27,9 @@ KERNELS = {"models": ("the model kernels", ("brdf.models.", "brdf.sampling", "br
 #: cache (NUMBA_CACHE_LOCATOR_CLASSES=UserProvidedCacheLocator, a new NUMBA_CACHE_DIR), one
 #: group after another, on the 2-core development host (2026-12-04, load average 2.4-5.3 from
 #: other work, so wall times were 1.3-3 times these): models 59.5 s, fitting 30.1 s, tables
-#: 19.0 s, render 75.6 s. A first command compiles only the kernels it calls, at most its
-#: group's (a first ``check``: 37.5 s).
+#: 19.0 s, render 75.6 s. A first command compiles only the kernels it calls, for its model's
+#: families alone (see ``brdf.models._kernels.family_kinds``): a first ``check`` of
+#: ``lambert + ggx`` 15.7 s (2026-12-05), its first fit 22 s more.
 COLD_SECONDS = {"models": 60, "fitting": 35, "tables": 20, "render": 80}
 
 

@@ -7,6 +7,10 @@ later processes (a test suite's workers, the demo's renders, a batch of fits) lo
 cache.
 On a warm cache it costs the processes' start-up only.
 
+Without it, a model's kernels compile for the families the model holds (a quick first command);
+with it, the kernels over every family are cached, and it records so in the cache
+(:func:`brdf.models._kernels.record_every_family`): from then on every model shares them.
+
     python -m brdf.precompile [GROUP ...]      (or: brdf-fit precompile [GROUP ...])
 
 Without it, the first call of a group's kernels compiles them, after one line on stderr
@@ -122,10 +126,11 @@ PROCESSES = 2
 def _run(parts):
     """Run ``parts`` (``(group, index)`` pairs of :data:`GROUPS`) in this process, without
     compile notices (the caller reports): for each, ``(seconds, kernels numba compiled)``."""
+    from .models._kernels import every_family
     from .progress import reporting
     notice = announce_first_compiles()
     out = []
-    with reporting(quiet=True):
+    with reporting(quiet=True), every_family():
         for group, index in parts:
             start, before = time.perf_counter(), notice.compiled
             GROUPS[group][index][0]()
@@ -148,7 +153,18 @@ def compile_groups(names):
     reports): for each, ``{"seconds": ..., "compiled": ...}``, the seconds it took and the
     kernels numba compiled (0: all came from the disk cache)."""
     parts = _parts(names)
-    return _totals(names, dict(zip(parts, _run(parts))))
+    took = _totals(names, dict(zip(parts, _run(parts))))
+    _record(names)
+    return took
+
+
+def _record(names):
+    """After the groups ``names`` compiled: with the models group, record that the kernels
+    over every family are cached, so that models use them from now on
+    (:func:`brdf.models._kernels.family_kinds`)."""
+    if "models" in names:
+        from .models._kernels import record_every_family
+        record_every_family()
 
 
 def _parts(names):
@@ -224,6 +240,7 @@ def precompile(groups=tuple(GROUPS), processes=PROCESSES):
                              mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = {part: pool.submit(_run, [part]) for part in parts}
         done = {part: future.result()[0] for part, future in futures.items()}
+    _record(groups)
     return _totals(groups, done)
 
 

@@ -27,7 +27,8 @@ from .._jit import inline_kernel, kernel, parallel_kernel, sparse_product
 from ..errors import InputError, ParameterError
 from ..models import _kinds as K
 from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
-                                lobe_grad_rows, rows_dispatcher, stack_array, with_last_axis)
+                                lobe_grad_rows, rows_dispatcher, specialising, stack_array,
+                                with_last_axis)
 from ..models.base import Component, Param, Sum
 from . import losses
 
@@ -219,6 +220,7 @@ class Problem:
         self.base = self._build({})
         compiled = self.base.compile(nch)
         self._kinds, self._offsets, self._packed = compiled.kinds, compiled.offsets, compiled.params
+        self._family_kinds = compiled.args[0]  # the kernels compile for the model's families
         self._slots = compiled.slots
         self._admissible = [(type(lobe).admissible, a, b) for lobe, a, b in
                             zip(self.base.lobes, self._offsets[:-1], self._offsets[1:])
@@ -432,8 +434,8 @@ class Problem:
                           for a, b in zip(self._offsets[:-1], self._offsets[1:])]).T
         lobes = np.ascontiguousarray(lobes)  # one kernel type, C layout, for any lobe count
         out = np.zeros((blocks, len(P), self.channels))
-        _loss_sums(self._kinds, self._offsets, P, lobes, self._fold_lobe, self.channels, s.wi,
-                   s.wo, t.scale, t.target, t.weight, t.offset, BLOCK, out)
+        _loss_sums(self._family_kinds, self._offsets, P, lobes, self._fold_lobe, self.channels,
+                   s.wi, s.wo, t.scale, t.target, t.weight, t.offset, BLOCK, out)
         losses = out.sum(axis=0) / t.norm
         if self._admissible:
             losses[self._refused(P)] = np.inf
@@ -490,9 +492,9 @@ class Problem:
         blocks = -(-len(s.wi) // block)
         loss = np.zeros((blocks, self.channels))
         dq = np.zeros((blocks, len(params)))
-        _loss_gradient_sums(self._kinds, self._offsets, params, self._needed, self._chan,
-                            self._fold_lobe, self.channels, s.wi, s.wo, t.scale, t.target,
-                            t.weight, t.offset, block, loss, dq)
+        _loss_gradient_sums(self._family_kinds, self._offsets, params, self._needed,
+                            self._chan, self._fold_lobe, self.channels, s.wi, s.wo, t.scale,
+                            t.target, t.weight, t.offset, block, loss, dq)
         grad = self._in_x(dq.sum(axis=0) / t.norm, x)
         return float(loss.sum(axis=0).sum() / t.norm), grad
 
@@ -535,8 +537,8 @@ class Problem:
         from ..models._kernels import eval_array
         s = self.samples
         f = np.empty(s.values.shape)
-        eval_array(self._kinds, self._offsets, self.packed(x)[0], self.channels, s.wi, s.wo, f,
-                   0.0, np.inf)  # the samples' directions were screened when read
+        eval_array(self._family_kinds, self._offsets, self.packed(x)[0], self.channels, s.wi,
+                   s.wo, f, 0.0, np.inf)  # the samples' directions were screened when read
         return f
 
     @staticmethod
@@ -737,15 +739,18 @@ for row in range(wi.shape[0]):
 for _name, _value in family_namespace().items():
     if globals().setdefault(_name, _value) is not _value:
         raise ImportError(f"family module name {_name!r} is taken in brdf.fitting.problem")
-#: The generated source of :func:`_fold_rows` (compiled under this file's name, so that numba
-#: caches it beside the file's other kernels).
-FOLD_SOURCE = rows_dispatcher(
+#: What :func:`rows_dispatcher` writes :func:`_fold_rows` from.
+_FOLD_ARGS = (
     "_fold_rows", "kind, q, nch, wi, wo, diffuse, scale, target, weight, offset, out, d, sums",
     "grad_", _FOLD_LOOP,
     "Add to ``sums`` (see :func:`_fold_row`) every row of a block of a model of Lambertian\n"
     "    lobes (summed albedos ``diffuse``) and one lobe of family ``kind``: f and its\n"
     "    derivatives at a row are folded into the sums at once, never stored.")
+#: The generated source of :func:`_fold_rows` (compiled under this file's name, so that numba
+#: caches it beside the file's other kernels), and of its copy for a model's families.
+FOLD_SOURCE = rows_dispatcher(*_FOLD_ARGS)
 exec(compile(FOLD_SOURCE, __file__, "exec"), globals())
+specialising(_fold_rows, lambda rows: rows_dispatcher(*_FOLD_ARGS, families=rows), globals())
 
 
 #: The loop of :func:`_fold_loss_rows` over a block's rows, for each family (``{call}``: its
@@ -762,15 +767,19 @@ for row in range(wi.shape[0]):
     for c in range(3):
         sums[c] += _residual(out[0, c], scale[row, c], target[row, c], weight[row], 0.0)[0]"""
 
-#: The generated source of :func:`_fold_loss_rows` (compiled under this file's name, as
-#: :data:`FOLD_SOURCE`).
-FOLD_LOSS_SOURCE = rows_dispatcher(
+#: What :func:`rows_dispatcher` writes :func:`_fold_loss_rows` from.
+_FOLD_LOSS_ARGS = (
     "_fold_loss_rows", "kind, q, nch, wi, wo, diffuse, scale, target, weight, out, sums",
     "eval_", _FOLD_LOSS_LOOP,
     "Add to ``sums[c]`` the terms (:func:`_residual`, no logarithm) of every row of a block of\n"
     "    a model of Lambertian lobes (summed albedos ``diffuse``) and one lobe of family\n"
     "    ``kind``: f at a row is scored at once, never stored.")
+#: The generated source of :func:`_fold_loss_rows` (compiled under this file's name, as
+#: :data:`FOLD_SOURCE`), and of its copy for a model's families.
+FOLD_LOSS_SOURCE = rows_dispatcher(*_FOLD_LOSS_ARGS)
 exec(compile(FOLD_LOSS_SOURCE, __file__, "exec"), globals())
+specialising(_fold_loss_rows,
+             lambda rows: rows_dispatcher(*_FOLD_LOSS_ARGS, families=rows), globals())
 
 
 @kernel

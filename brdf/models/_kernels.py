@@ -34,17 +34,24 @@ of any formula. (The closed-form albedo weights are ratios of a family's formula
 tests hold them to ``eval`` cos / ``pdf``.)
 """
 
+import contextlib
 import importlib
 import inspect
+import os
 
 import numpy as np
 from llvmlite import ir
 from numba import prange
 from numba.core import cgutils, types
+from numba.core.datamodel.models import IntegerModel
+from numba.core.datamodel.registry import register_default
 from numba.core.imputils import impl_ret_borrowed
+from numba.core.typeconv import Conversion
+from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic
 
 from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
+from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
 
@@ -125,11 +132,11 @@ def _is_delta_family(kind, module):
     return True
 
 
-def _branches(hook, params, template, delta_body, optional):
-    """``(condition, body)`` for each family that the hook concerns, neighbours with the same
-    body merged into one condition."""
+def _branches(hook, params, template, delta_body, optional, families=K.FAMILIES):
+    """``(condition, body)`` for each family of ``families`` (rows of the table) that the hook
+    concerns, neighbours with the same body merged into one condition."""
     out = []
-    for row in K.FAMILIES:
+    for row in families:
         kind, _, name, _ = row
         module = _FAMILY_MODULES[name]
         if delta_body is not None and _is_delta_family(kind, module):
@@ -222,10 +229,11 @@ _ROW = "ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1
 _DELTA_ROW = "pass  # a delta lobe's eval is 0, and so are its derivatives"
 
 
-def _row_calls(hook, params):
-    """``(row, module, call)`` for each family: the source of its ``hook`` called with
-    ``params`` by name, or None for a delta lobe (whose eval and derivatives are 0)."""
-    for row in K.FAMILIES:
+def _row_calls(hook, params, families=K.FAMILIES):
+    """``(row, module, call)`` for each family of ``families``: the source of its ``hook``
+    called with ``params`` by name, or None for a delta lobe (whose eval and derivatives are
+    0)."""
+    for row in families:
         kind, _, name, _ = row
         module = _FAMILY_MODULES[name]
         if _is_delta_family(kind, module):
@@ -236,10 +244,11 @@ def _row_calls(hook, params):
             raise ImportError(f"family {kind}: brdf.models.{name} lacks the kernel {hook}")
 
 
-def _row_branches(rows_hook, hook, params):
+def _row_branches(rows_hook, hook, params, families=K.FAMILIES):
     """``(condition, body)`` of a rows dispatcher for each family, as :func:`_branches`."""
     out = []
-    for row, module, call in _row_calls(hook, params + ["k", *_ROW.split(" = ")[0].split(", ")]):
+    for row, module, call in _row_calls(hook, params + ["k", *_ROW.split(" = ")[0].split(", ")],
+                                        families):
         if call is None:
             body = _DELTA_ROW
         else:
@@ -251,7 +260,7 @@ def _row_branches(rows_hook, hook, params):
     return _merged(out)
 
 
-def rows_dispatcher(name, params, hook, loop, doc):
+def rows_dispatcher(name, params, hook, loop, doc, families=K.FAMILIES):
     """Source of an inline kernel ``name(params)`` that runs ``loop`` for the family ``kind`` (a
     parameter): for callers whose loop over rows does more per row than one hook can, such as
     fitting's loss-and-gradient pass, which folds each row's derivatives into its sums at once.
@@ -262,11 +271,14 @@ def rows_dispatcher(name, params, hook, loop, doc):
     derivatives are 0). A family with ``rows_split_``, a test of its constant parameters that
     its per-pair kernels make (a Fresnel term or none), gets the loop twice, under each outcome
     of the test: inlined below it, the test in the loop is known and folded away, so the loop
-    holds no branch and vectorises."""
+    holds no branch and vectorises.
+
+    ``families`` (rows of the family table, all by default) are the families the loop is
+    written for: see :func:`specialising`."""
     names = params.split(", ")
     out = []
     for row, module, call in _row_calls(hook, names + ["k", "ix", "iy", "iz", "ox", "oy", "oz",
-                                                       "out", "d"]):
+                                                       "out", "d"], families):
         body = loop.format(call=_DELTA_ROW if call is None else call)
         if call is not None and hasattr(module, "rows_split_"):
             inner = "\n".join("    " + line for line in body.split("\n"))
@@ -280,28 +292,31 @@ def family_namespace():
     return {"K": K, **_FAMILY_MODULES}
 
 
-def _generate():
-    """Source of every dispatcher over the family table."""
+def _generate(families=K.FAMILIES):
+    """Source of every dispatcher over ``families`` (rows of the family table: all of them by
+    default, or a model's own, see :func:`specialising`)."""
     parts = []
     for name, decorator, params, hook, template, delta_body, fallback, doc in _DISPATCHERS:
         names = params.split(", ")
         optional = hook == "reflectance_"
-        lines = _chain(_branches(hook, names, template, delta_body, optional), fallback)
+        lines = _chain(_branches(hook, names, template, delta_body, optional, families),
+                       fallback)
         parts.append(_function(decorator, name, params, doc, lines or ["    pass"]))
     for name, params, rows_hook, hook, doc in _ROW_DISPATCHERS:
-        lines = _chain(_row_branches(rows_hook, hook, params.split(", ")), None)
+        lines = _chain(_row_branches(rows_hook, hook, params.split(", "), families), None)
         parts.append(_function("inline_kernel", name, params, doc, lines or ["    pass"]))
-    delta = [f"kind == K.{kind}" for kind, _, name, _ in K.FAMILIES
+    delta = [f"kind == K.{kind}" for kind, _, name, _ in families
              if _is_delta_family(kind, _FAMILY_MODULES[name])]
     parts.append(_function("kernel", "is_delta", "kind", "Whether ``kind`` is a delta lobe.",
                            [f"    return {' or '.join(delta) if delta else 'False'}"]))
     terms = [(f"kind == K.{kind}", f"return {name}.ALBEDO_TERMS")
-             for kind, _, name, _ in K.FAMILIES if hasattr(_FAMILY_MODULES[name], "ALBEDO_TERMS")]
+             for kind, _, name, _ in families if hasattr(_FAMILY_MODULES[name], "ALBEDO_TERMS")]
     parts.append(_function("kernel", "lobe_terms", "kind", "Number of terms the albedo "
                            "integrates apart, each over its own sampler's unit square.",
                            _chain(terms, "return 1")))
     params = "kind, q, nch, term, ix, iy, iz, u1, u2, out"
-    weights = _branches("albedo_weight_", params.split(", "), "oz, piece = {call}", None, True)
+    weights = _branches("albedo_weight_", params.split(", "), "oz, piece = {call}", None, True,
+                        families)
     lines = _chain(weights, _WEIGHT_FROM_EVAL)
     lines += ["    if piece > 0:", "        return piece",
               "    return -1 if oz < -HORIZON_MARGIN else 0"]
@@ -318,6 +333,178 @@ for _name, _module in _FAMILY_MODULES.items():
 #: caches them beside the file's other kernels).
 DISPATCH_SOURCE = _generate()
 exec(compile(DISPATCH_SOURCE, __file__, "exec"), globals())
+
+
+# --- kernels specialised to a model's families -----------------------------------------------
+#
+# Compiled for a plain int64 kind, each dispatcher holds every family's formulas, and so does
+# every kernel that calls one: a first ``check`` of ``lambert + ggx`` compiled every family
+# into its two kernels (31 s of CPU). A model's kinds reach the kernels as a
+# :func:`family_kinds` array instead, whose numba type names the families it holds (its items
+# are :class:`FamilyKind`). numba compiles a kernel once per set of argument types, so once
+# per family set, and caches it on disk like any other signature; a dispatcher called with such
+# a kind compiles a copy of itself generated for those families only (:func:`specialising`):
+# the first check compiles in 15 s. Plain int64 kinds (the renderer's materials, calls from
+# Python, and every model once brdf.precompile has cached them) keep the dispatchers over
+# every family. A family's branch holds the same code either way; compiled with fast-math
+# contraction into other surroundings, a formula may round differently in the last bit
+# (tests hold the two to 4e-15).
+
+class FamilyKind(types.Integer):
+    """numba type of a lobe's kind read from a :func:`family_kinds` array: an int64 known to be
+    one of ``families`` (sorted codes of the family table).
+
+    Its name is ``int64``, which numba's numpy typing of comparisons reads; its key and its
+    mangled name hold the families, so that each set is typed, compiled and cached apart."""
+
+    def __init__(self, families):
+        self.families = tuple(families)
+        super().__init__("int64", bitwidth=64, signed=True)
+
+    @property
+    def key(self):
+        return "kind", self.families
+
+    @property
+    def mangling_args(self):
+        return "kind", self.families
+
+    def can_convert_to(self, typingctx, other):
+        # to plain integers (arithmetic, indexing), never to another family set's kind
+        if isinstance(other, types.Integer) and not isinstance(other, FamilyKind):
+            return max(typingctx.can_convert(types.int64, other) or Conversion.promote,
+                       Conversion.promote)
+        return None
+
+
+register_default(FamilyKind)(IntegerModel)
+
+
+class _FamilyKinds(np.ndarray):
+    """An array of kinds whose dtype, one int64 field named after the family set, tells numba
+    its type (:func:`family_kinds`). numba dispatches a call on a fingerprint of each array's
+    dtype, never its values: a dtype per family set makes one (plain int64 arrays of other
+    sets would all match the first set's kernels)."""
+
+    __numba_array_subtype_dispatch__ = True  # numba types it with typeof_impl, not as ndarray
+
+
+@typeof_impl.register(_FamilyKinds)
+def _typeof_family_kinds(value, context):
+    return types.Array(FamilyKind(int(c) for c in value.dtype.names[0].split("_")[1:]), 1, "C")
+
+
+#: The dtype of each family set's kinds arrays.
+_FAMILY_DTYPES = {}
+
+
+_EVERY_FAMILY = {"forced": 0, "cached": None}
+
+
+@contextlib.contextmanager
+def every_family():
+    """Within this context, :func:`family_kinds` gives plain kinds: kernels compile over every
+    family, as :mod:`brdf.precompile` compiles them (then :func:`record_every_family`)."""
+    _EVERY_FAMILY["forced"] += 1
+    try:
+        yield
+    finally:
+        _EVERY_FAMILY["forced"] -= 1
+
+
+def _marker():
+    return stamped_marker(eval_array, "every-family-kernels")
+
+
+def record_every_family():
+    """Record in the kernel cache that the kernels over every family are in it: from then on,
+    in every process, :func:`family_kinds` gives plain kinds and models use those kernels."""
+    path = _marker()
+    if path is not None:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with open(path, "w"):
+            pass
+        _EVERY_FAMILY["cached"] = True
+
+
+def every_family_cached():
+    """Whether :func:`record_every_family` was called on this kernel cache (looked up once per
+    process)."""
+    if _EVERY_FAMILY["cached"] is None:
+        path = _marker()
+        _EVERY_FAMILY["cached"] = path is not None and os.path.exists(path)
+    return _EVERY_FAMILY["cached"]
+
+
+def family_kinds(kinds):
+    """``kinds`` (lobe kinds, codes of the family table) as the kernels take a model's.
+
+    Once :mod:`brdf.precompile` has put the kernels over every family in the cache
+    (:func:`every_family_cached`), or within :func:`every_family`, these are the plain kinds,
+    and every model shares those kernels. Otherwise their numba type holds the model's set of
+    families, and the kernels compile for that set alone: a first ``check`` of ``lambert +
+    ggx`` on an empty cache compiles in 15 s of CPU instead of 31 s, each further family set
+    in less (the families' own kernels are cached apart and shared).
+    """
+    kinds = np.ascontiguousarray(kinds, dtype=np.int64)
+    if _EVERY_FAMILY["forced"] or every_family_cached():
+        return kinds
+    return kinds_of_families(kinds)
+
+
+def kinds_of_families(kinds):
+    """``kinds`` (int64) typed with their set of families, whatever the cache holds: the
+    kernels called with them compile for that set alone (:class:`FamilyKind`)."""
+    kinds = np.ascontiguousarray(kinds, dtype=np.int64)
+    families = tuple(sorted(set(kinds.tolist())))
+    dtype = _FAMILY_DTYPES.get(families)
+    if dtype is None:
+        dtype = np.dtype([("kind_" + "_".join(map(str, families)), "<i8")])
+        _FAMILY_DTYPES[families] = dtype
+    return kinds.view(dtype).view(_FamilyKinds)
+
+
+def specialising(dispatcher, source_of, namespace):
+    """``dispatcher`` (generated source: a chain of tests of its first parameter, the kind),
+    compiling a call whose kind is a :class:`FamilyKind` from ``source_of(rows)`` instead: the
+    source of the same function over those families' rows of the family table only, compiled
+    under the file name of ``namespace`` (a module's globals) into it as ``NAME__f<codes>``
+    (a name of its own, so that numba caches each family set apart). Its compiled overload joins ``dispatcher``'s, where the
+    caller's typing finds it."""
+    resolve, name = dispatcher.get_call_template, dispatcher.py_func.__name__
+    variants = {}
+
+    def get_call_template(args, kws):
+        kind = types.unliteral(args[0]) if args else None
+        if isinstance(kind, FamilyKind):
+            variant = variants.get(kind.families)
+            if variant is None:
+                rows = tuple(r for r in K.FAMILIES if r[1] in kind.families)
+                own = f"{name}__f{'_'.join(map(str, kind.families))}"
+                source = source_of(rows).replace(f"def {name}(", f"def {own}(", 1)
+                exec(compile(source, namespace["__file__"], "exec"), namespace)
+                variant = variants[kind.families] = namespace[own]
+            variant.get_call_template(args, kws)  # compiles it, or loads it from the cache
+            for key, cres in list(variant.overloads.items()):
+                if key not in dispatcher.overloads:
+                    dispatcher.add_overload(cres)
+        return resolve(args, kws)
+
+    dispatcher.get_call_template = get_call_template
+    return dispatcher
+
+
+def _one_dispatcher(name):
+    """Source of the generated dispatcher ``name`` over the given family rows."""
+    def source_of(rows):
+        part = [p for p in _generate(rows).split("\n\n\n") if f"\ndef {name}(" in p]
+        return part[0]
+    return source_of
+
+
+for _name in [line.split("(")[0][4:] for line in DISPATCH_SOURCE.split("\n")
+              if line.startswith("def ")]:
+    specialising(globals()[_name], _one_dispatcher(_name), globals())
 
 # --- mixtures ---------------------------------------------------------------------------------
 #

@@ -397,7 +397,11 @@ class Compiled:
 
     @property
     def args(self):
-        return self.kinds, self.offsets, self.params, self.nch
+        """What the array drivers of ``_kernels`` take: the kinds typed with the model's family
+        set (``_kernels.family_kinds``: the kernels compile for those families alone), the
+        offsets, the packed parameters and the channel count."""
+        from ._kernels import family_kinds
+        return family_kinds(self.kinds), self.offsets, self.params, self.nch
 
 
 def gauss_legendre_unit(n):
