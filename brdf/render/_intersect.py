@@ -281,8 +281,12 @@ PACKET = 512
 #: packet's test of a node costs all PACKET lanes, so the threshold grows with the packet: the
 #: Cornell box with a 44,400-triangle sphere in it, one thread, went from 0.58 M paths/s
 #: (packets of 256, threshold 8) to 0.66 M (512, 32; 24 and 48 did as well); the bare box is
-#: unaffected (every ray enters its two leaves).
-ALONE = 32
+#: unaffected (every ray enters its two leaves). The single rays' 4-wide tree made them
+#: cheaper, so more are left alone: on the 40,400-triangle mesh of ``bench_render.py``, one
+#: thread, 32 -> 64 took a path from 718 to 689 ns, and its camera, bounce and shadow rays from
+#: 109, 182 and 250 to 102, 172 and 232 ns (96: 104, 176, 234; 128: 106, 178, 232; 8 and 16
+#: were slower).
+ALONE = 64
 
 
 @kernel
