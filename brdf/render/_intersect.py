@@ -58,6 +58,9 @@ ORIGIN, DIRECTION, RAY_ROWS = 0, 3, 6
 #: Levels of the binary tree at most (:func:`.bvh.build_bvh` keeps every tree shallower).
 DEPTH = 62
 #: Children of a wide node (:func:`.bvh.collapse`), the single rays' tree: a power of two.
+#: On the 40,400-triangle mesh of ``bench_render.py``, one thread, its camera, bounce and
+#: shadow rays (ALONE 32) took 109, 182 and 250 ns at 4; 122, 202 and 276 at 8; 114, 187 and
+#: 260 at 16 (whose node test runs in AVX-512 lanes: 16 boxes in 15.6 ns, as 4 in scalar code).
 WIDTH = 4
 #: Half the traversal's stack (callers pass 2 STACK integers): the packet's stack holds at most
 #: DEPTH + 2 nodes, a ray's on top of it WIDTH - 1 per wide level and one more.
@@ -242,8 +245,9 @@ def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz
 @kernel
 def _wide_entries(wbox, n, ox, oy, oz, rx, ry, rz, tmax, dist):
     """Entry distance of the ray into each of wide node n's WIDTH child boxes within (0, tmax)
-    into ``dist[:WIDTH]``, inf where it misses (:func:`_slab`). One branch-free loop, which
-    LLVM runs in SIMD lanes."""
+    into ``dist[:WIDTH]``, inf where it misses (:func:`_slab`). One branch-free loop: LLVM
+    unrolls it into scalar code at WIDTH 4 and 8, and runs it in AVX-512 lanes at 16 (see
+    :data:`WIDTH`)."""
     for s in range(WIDTH):
         corners = ((float(wbox[n, 0, s]), float(wbox[n, 1, s]), float(wbox[n, 2, s])),
                    (float(wbox[n, 3, s]), float(wbox[n, 4, s]), float(wbox[n, 5, s])))
