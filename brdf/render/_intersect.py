@@ -21,6 +21,10 @@ Its arrays (built by :meth:`brdf.render.scene.Scene.compile`):
   holds its two children, a leaf ``(-first - 1, count)``: its primitives fill ``count`` blocks
   of LANES slots from block ``first`` on, and ``slots (nb * LANES,)`` holds the primitive in
   each slot, -1 in the padding that ends a leaf's last block (built by :mod:`.bvh`);
+- the same tree collapsed to WIDTH-wide nodes for single rays (:func:`.bvh.collapse`):
+  ``wbox (nw, 6, WIDTH)`` float32, each child's lower and upper corner a row per coordinate,
+  rounded outward; ``wchild (nw, 2, WIDTH)``, a child's wide node or leaf (coded as in
+  ``child``); ``entry (nn, 2)``, each binary node's wide node and the mask of its slots there;
 - ``planes (nb, PLANE_ROWS, LANES)``: the intersection data of the primitive in each slot of
   each block, one row per field (normal, corner, q1, q2, a triangle flag, a sphere flag) so
   that a block's primitives are tested side by side in SIMD lanes (:func:`leaf_distances`);
@@ -51,10 +55,19 @@ LANES = 16
 #: Rows of a packet's ``ray`` array (:func:`trace_packet`), a ray per column: its origin and
 #: unit direction.
 ORIGIN, DIRECTION, RAY_ROWS = 0, 3, 6
-#: Depth of the traversal stack (:func:`.bvh.build_bvh` keeps every tree shallower).
-STACK = 64
+#: Levels of the binary tree at most (:func:`.bvh.build_bvh` keeps every tree shallower).
+DEPTH = 62
+#: Children of a wide node (:func:`.bvh.collapse`), the single rays' tree: a power of two.
+#: On the 40,400-triangle mesh of ``bench_render.py``, one thread, its camera, bounce and
+#: shadow rays (ALONE 32) took 109, 182 and 250 ns at 4; 122, 202 and 276 at 8; 114, 187 and
+#: 260 at 16 (whose node test runs in AVX-512 lanes: 16 boxes in 15.6 ns, as 4 in scalar code).
+WIDTH = 4
+#: Half the traversal's stack (callers pass 2 STACK integers): the packet's stack holds at most
+#: DEPTH + 2 nodes, a ray's on top of it WIDTH - 1 per wide level and one more.
+STACK = 128
 #: The scene's geometry as every kernel takes it (the arrays described above).
-Geometry = namedtuple("Geometry", "prim sph quad tri tri_n tri_uv box child slots planes")
+Geometry = namedtuple("Geometry",
+                      "prim sph quad tri tri_n tri_uv box child slots planes wbox wchild entry")
 
 
 # --- primitives ------------------------------------------------------------------------------
@@ -159,13 +172,6 @@ def _slab(corners, ox, oy, oz, rx, ry, rz, tmax):
 
 
 @inline_kernel
-def _box_entry(box, n, ox, oy, oz, rx, ry, rz, tmax):
-    """Entry distance of the ray into box n within (0, tmax), or inf (:func:`_slab`)."""
-    near, enters = _slab(_corners(box, n), ox, oy, oz, rx, ry, rz, tmax)
-    return near if enters else math.inf
-
-
-@inline_kernel
 def _slot_hit(geo, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
     """Distance to the primitive in ``slot``, lane j of the leaf pass (which held it to the
     pass's tmax), the sphere's own test in (0, tmax) for a sphere; inf on a miss."""
@@ -179,24 +185,29 @@ def _slot_hit(geo, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
 @kernel
 def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz, tmax,
                 any_hit):
-    """One ray (origin o, direction d, reciprocal direction r) through the subtree of node
-    ``start``: ``(t, slot)`` of its nearest hit in (0, tmax), or with ``any_hit`` of the first
-    one found; slot -1 on a miss. ``stack`` holds the caller's entries below ``top``; ``dist``
-    (LANES numbers) is work space. Nearer children are visited first for the nearest hit: its
-    hits shorten the far child's tests."""
-    box, child, planes = geo.box, geo.child, geo.planes
-    stack[top] = start
+    """One ray (origin o, direction d, reciprocal direction r) through the subtree of binary
+    node ``start``, in the wide tree (:func:`.bvh.collapse`): ``(t, slot)`` of its nearest hit
+    in (0, tmax), or with ``any_hit`` of the first one found; slot -1 on a miss. ``stack``
+    holds the caller's entries below ``top``; ``dist`` (LANES numbers) is work space.
+
+    A wide node's WIDTH child boxes are tested in one loop (float32 corners, widened exactly,
+    against the ray in float64, so the test is as exact as the binary tree's and conservative),
+    and its children are pushed farthest first, so the nearest is visited next (its hits
+    shorten the other tests). A leaf is pushed as ``-(node * WIDTH + slot) - 1``."""
+    wbox, wchild, planes = geo.wbox, geo.wchild, geo.planes
+    w, mask = geo.entry[start, 0], geo.entry[start, 1]
+    stack[top] = w
     bottom = top
     top += 1
     best, found = tmax, -1
     while top > bottom:
         top -= 1
-        n = stack[top]
-        if _box_entry(box, n, ox, oy, oz, rx, ry, rz, best) == math.inf:
-            continue
-        c0, c1 = child[n, 0], child[n, 1]
-        if c0 < 0:
-            for blk in range(-c0 - 1, -c0 - 1 + c1):
+        code = stack[top]
+        if code < 0:
+            ref = -code - 1
+            n, s = ref // WIDTH, ref % WIDTH
+            first = -wchild[n, 0, s] - 1
+            for blk in range(first, first + wchild[n, 1, s]):
                 leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, best, dist)
                 for j in range(LANES):
                     t = _slot_hit(geo, dist, blk * LANES + j, j, ox, oy, oz, dx, dy, dz, best)
@@ -205,16 +216,43 @@ def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz
                         if any_hit:
                             return best, found
             continue
-        e0 = _box_entry(box, c0, ox, oy, oz, rx, ry, rz, best)
-        e1 = _box_entry(box, c1, ox, oy, oz, rx, ry, rz, best)
-        near, far, en, ef = (c0, c1, e0, e1) if e0 <= e1 else (c1, c0, e1, e0)
-        if ef < math.inf:
-            stack[top] = far
+        _wide_entries(wbox, code, ox, oy, oz, rx, ry, rz, best, dist)
+        if mask != -1:
+            for s in range(WIDTH):
+                if not (mask >> s) & 1:
+                    dist[s] = math.inf
+            mask = -1
+        # the entered children, farthest first (insertion sort on their entry distances;
+        # equal distances keep the slots' order, the lower slot visited first)
+        low = top
+        for s in range(WIDTH):
+            e = dist[s]
+            if e == math.inf:
+                continue
+            i = top
+            while i > low and dist[stack[i - 1]] <= e:
+                stack[i] = stack[i - 1]
+                i -= 1
+            stack[i] = s
             top += 1
-        if en < math.inf:
-            stack[top] = near
-            top += 1
+        for i in range(low, top):
+            s = stack[i]
+            c = wchild[code, 0, s]
+            stack[i] = c if c >= 0 else -(code * WIDTH + s) - 1
     return best, found
+
+
+@kernel
+def _wide_entries(wbox, n, ox, oy, oz, rx, ry, rz, tmax, dist):
+    """Entry distance of the ray into each of wide node n's WIDTH child boxes within (0, tmax)
+    into ``dist[:WIDTH]``, inf where it misses (:func:`_slab`). One branch-free loop: LLVM
+    unrolls it into scalar code at WIDTH 4 and 8, and runs it in AVX-512 lanes at 16 (see
+    :data:`WIDTH`)."""
+    for s in range(WIDTH):
+        corners = ((float(wbox[n, 0, s]), float(wbox[n, 1, s]), float(wbox[n, 2, s])),
+                   (float(wbox[n, 3, s]), float(wbox[n, 4, s]), float(wbox[n, 5, s])))
+        near, enters = _slab(corners, ox, oy, oz, rx, ry, rz, tmax)
+        dist[s] = near if enters else math.inf
 
 
 @inline_kernel
@@ -247,8 +285,12 @@ PACKET = 512
 #: packet's test of a node costs all PACKET lanes, so the threshold grows with the packet: the
 #: Cornell box with a 44,400-triangle sphere in it, one thread, went from 0.58 M paths/s
 #: (packets of 256, threshold 8) to 0.66 M (512, 32; 24 and 48 did as well); the bare box is
-#: unaffected (every ray enters its two leaves).
-ALONE = 32
+#: unaffected (every ray enters its two leaves). The single rays' 4-wide tree made them
+#: cheaper, so more are left alone: on the 40,400-triangle mesh of ``bench_render.py``, one
+#: thread, 32 -> 64 took a path from 718 to 689 ns, and its camera, bounce and shadow rays from
+#: 109, 182 and 250 to 102, 172 and 232 ns (96: 104, 176, 234; 128: 106, 178, 232; 8 and 16
+#: were slower).
+ALONE = 64
 
 
 @kernel

@@ -16,7 +16,7 @@ cache).
 
 import numpy as np
 
-from ._intersect import LANES, LEAF_SIZE, STACK
+from ._intersect import DEPTH, LANES, LEAF_SIZE, WIDTH
 
 #: Split candidates costed per node and axis (at most; a node of fewer primitives costs
 #: every split).
@@ -28,7 +28,7 @@ CANDIDATES = 32
 #: faster.
 TRAVERSAL = 12.0
 
-__all__ = ["build_bvh", "block_leaves", "LEAF_SIZE"]
+__all__ = ["build_bvh", "block_leaves", "collapse", "LEAF_SIZE"]
 
 
 def _ranges(start, count):
@@ -103,8 +103,8 @@ def build_bvh(lo, hi):
     Returns ``box (nn, 2, 3)`` (node lower and upper corners), ``child (nn, 2)`` (an inner
     node's two children; a leaf's ``(-start - 1, count)`` into ``order``) and ``order (n,)``,
     the primitives in leaf order. Node 0 is the root; nodes are numbered level by level. Below
-    depth STACK - 2 - log2(n) nodes are split at their median centroid along the widest axis,
-    so that no path from the root is longer than the traversal's stack.
+    depth DEPTH - log2(n) nodes are split at their median centroid along the widest axis,
+    so that no path from the root is longer than DEPTH (the traversal's stack bound).
     """
     lo = np.ascontiguousarray(lo, dtype=float)
     hi = np.ascontiguousarray(hi, dtype=float)
@@ -117,7 +117,7 @@ def build_bvh(lo, hi):
     levels = []
     node, start, count = np.zeros(1, np.int64), np.zeros(1, np.int64), np.full(1, n, np.int64)
     next_id = 1
-    median_from = STACK - 2 - int(np.ceil(np.log2(max(n, 2))))
+    median_from = DEPTH - int(np.ceil(np.log2(max(n, 2))))
     while node.size:
         last = start + count - 1
         extent = np.stack([cen[by_axis[a][last], a] - cen[by_axis[a][start], a]
@@ -195,3 +195,78 @@ def block_leaves(child, order, lanes=LANES):
     out = child.copy()
     out[leaf, 0], out[leaf, 1] = -first_block - 1, blocks
     return out, slots
+
+
+def _outward(x, toward):
+    """``x`` (float64) as float32, rounded toward ``toward`` (-inf or inf) where it is not
+    exact, so that a float32 box holds its float64 box."""
+    f = x.astype(np.float32)
+    off = (f < x) if toward > 0 else (f > x)
+    return np.where(off, np.nextafter(f, np.float32(toward)), f)
+
+
+def collapse(box, child, width=WIDTH):
+    """The tree of :func:`block_leaves` (``box, child``) as a ``width``-wide tree (a power of
+    two), for single rays: each wide node holds the nodes ``log2(width)`` levels below one
+    binary node, the binary tree's levels in between dropped (Dammertz et al. 2008, "Shallow
+    Bounding Volume Hierarchies for Fast SIMD Ray Tracing of Incoherent Rays"; Wald et al.
+    2008, "Getting Rid of Packets"), so that one node visit tests ``width`` boxes side by side
+    in SIMD lanes. The SAH tree it collapses is :func:`build_bvh`'s.
+
+    Returns ``wbox (nw, 6, width)`` float32: each child slot's lower then upper corner, a row
+    per coordinate (structure of arrays), rounded outward from the binary tree's float64 boxes;
+    an empty slot's is +inf everywhere, which no ray enters. ``wchild (nw, 2, width)``: a
+    slot's wide node (row 0, >= 0, row 1 zero), or its leaf as ``block_leaves`` codes it
+    (``-first - 1`` and the block count); an empty slot holds a leaf of no blocks. ``entry
+    (nn, 2)``: for each binary node, the wide node whose slots cover its subtree and the bit
+    mask of those slots (a packet that leaves a binary node to its rays starts them there).
+    Node 0 is the root; a wide node's subtree never holds more levels than the binary one's.
+    """
+    k = int(width).bit_length() - 1
+    if width < 2 or 1 << k != width:
+        raise ValueError(f"width {width}: expected a power of two >= 2")
+    nn = child.shape[0]
+    entry = np.zeros((nn, 2), np.int64)
+    lo = _outward(box[:, 0], -np.inf)
+    hi = _outward(box[:, 1], np.inf)
+    roots, base = np.zeros(1, np.int64), 0
+    wboxes, wchildren = [], []
+    while roots.size:
+        m = roots.size
+        wid = base + np.arange(m, dtype=np.int64)
+        cur = roots[:, None]
+        for i in range(k + 1):
+            span = width >> i
+            pos = np.arange(cur.shape[1], dtype=np.int64)
+            mask = ((1 << span) - 1) << (pos * span)
+            valid = cur >= 0
+            rows = np.broadcast_to(wid[:, None], cur.shape)[valid]
+            entry[cur[valid], 0] = rows
+            entry[cur[valid], 1] = np.broadcast_to(mask, cur.shape)[valid]
+            if i == k:
+                break
+            safe = np.maximum(cur, 0)
+            inner = valid & (child[safe, 0] >= 0)
+            nxt = np.empty((m, 2 * cur.shape[1]), np.int64)
+            nxt[:, 0::2] = np.where(inner, child[safe, 0], cur)
+            nxt[:, 1::2] = np.where(inner, child[safe, 1], -1)
+            cur = nxt
+        # cur (m, width): each slot's binary node, -1 where empty
+        safe = np.maximum(cur, 0)
+        valid = cur >= 0
+        inner = valid & (child[safe, 0] >= 0)
+        nxt_roots = cur[inner]
+        wc = np.zeros((m, 2, width), np.int64)
+        wc[:, 0] = -1
+        wc[:, 0][inner] = base + m + np.arange(nxt_roots.size, dtype=np.int64)
+        leaf = valid & ~inner
+        wc[:, 0][leaf] = child[cur[leaf], 0]
+        wc[:, 1][leaf] = child[cur[leaf], 1]
+        wb = np.full((m, 6, width), np.inf, np.float32)
+        wb[:, 0:3] = np.where(valid[:, None], lo[safe].transpose(0, 2, 1), np.float32(np.inf))
+        wb[:, 3:6] = np.where(valid[:, None], hi[safe].transpose(0, 2, 1), np.float32(np.inf))
+        wboxes.append(wb)
+        wchildren.append(wc)
+        base += m
+        roots = nxt_roots
+    return np.concatenate(wboxes), np.concatenate(wchildren), entry

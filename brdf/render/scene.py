@@ -17,7 +17,7 @@ from ..errors import InputError
 from . import _intersect as X
 from . import _lights as L
 from . import _materials as M
-from .bvh import block_leaves, build_bvh
+from .bvh import block_leaves, build_bvh, collapse
 
 __all__ = ["Camera", "Sphere", "Quad", "Mesh", "box", "rectangle", "Material", "PointLight",
            "SpotLight", "DirectionalLight", "GoniometricLight", "Environment", "Scene"]
@@ -455,9 +455,9 @@ class Scene:
         lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
         scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
         pad = 1e-9 * (1.0 + scale)
-        nodes, child, slots = _tree(lo - pad, hi + pad)
+        nodes, child, slots, wbox, wchild, entry = _tree(lo - pad, hi + pad)
         geo = X.Geometry(prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
-                         _planes(prim, slots, quad, tri))
+                         _planes(prim, slots, quad, tri), wbox, wchild, entry)
         # area lights from emissive shapes (meshes do not emit), in the primitives' order
         first = np.cumsum([len(b) for b in blocks]) - [len(b) for b in blocks]
         for k, (i, block) in enumerate(zip(first, blocks)):
@@ -491,7 +491,8 @@ _TREES_KEPT = 4
 
 def _tree(lo, hi):
     """The BVH over boxes ``lo, hi`` with its leaves in blocks (:func:`.bvh.build_bvh`,
-    :func:`.bvh.block_leaves`): ``(nodes, child, slots)``. A scene compiles on every render,
+    :func:`.bvh.block_leaves`) and its wide form (:func:`.bvh.collapse`): ``(nodes, child,
+    slots, wbox, wchild, entry)``. A scene compiles on every render,
     and the same boxes give the same tree, so the last few are kept: a mesh's SAH build (0.15 s
     for 40,400 triangles) is not paid again by a benchmark's repeats or an inverse method's
     passes over the same geometry. Kernels only read the arrays, so scenes may share them."""
@@ -504,10 +505,10 @@ def _tree(lo, hi):
         return _TREES[key]
     nodes, child, order = build_bvh(lo, hi)
     child, slots = block_leaves(child, order)
-    _TREES[key] = nodes, child, slots
+    _TREES[key] = (nodes, child, slots) + collapse(nodes, child)
     while len(_TREES) > _TREES_KEPT:
         _TREES.popitem(last=False)
-    return nodes, child, slots
+    return _TREES[key]
 
 
 def _label(item, k, kind="shape"):

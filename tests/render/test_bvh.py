@@ -10,7 +10,7 @@ import pytest
 
 from brdf import render
 from brdf.render import _intersect as X
-from brdf.render.bvh import CANDIDATES, LEAF_SIZE, TRAVERSAL, block_leaves, build_bvh
+from brdf.render.bvh import CANDIDATES, LEAF_SIZE, TRAVERSAL, block_leaves, build_bvh, collapse
 
 
 def _boxes(n, seed, ties=False):
@@ -102,7 +102,7 @@ def test_a_million_boxes_build_in_seconds():
     t = time.perf_counter()
     box, child, order = build_bvh(lo, hi)
     assert time.perf_counter() - t < 30.0            # about 10 s here on a loaded host
-    assert max(d for _, d in _walk(child)) < X.STACK
+    assert max(d for _, d in _walk(child)) <= X.DEPTH
 
 
 @pytest.mark.parametrize("n, ties", [(1, False), (17, False), (2000, False), (2000, True)])
@@ -121,6 +121,58 @@ def test_leaf_blocks_hold_each_leaf_and_nothing_else(n, ties):
         assert np.all(held[count:] == -1)
     inner = child[:, 0] >= 0
     np.testing.assert_array_equal(blocked[inner], child[inner])
+
+
+
+def _wide_leaves(wchild, node, width):
+    """The leaves (block_leaves codes) under a wide node, depth first."""
+    out = []
+    for s in range(width):
+        c, k = wchild[node, 0, s], wchild[node, 1, s]
+        if c >= 0:
+            out += _wide_leaves(wchild, c, width)
+        elif k > 0:
+            out.append((c, k))
+    return out
+
+
+@pytest.mark.parametrize("width", [2, 4, 8, 16])
+@pytest.mark.parametrize("n, ties", [(1, False), (17, False), (2000, False), (2000, True)])
+def test_the_wide_tree_holds_each_binary_subtree_in_boxes_rounded_outward(n, ties, width):
+    """Every binary node's entry (wide node and slot mask) reaches exactly its subtree's
+    leaves; the float32 boxes are conservative."""
+    lo, hi = _boxes(n, n, ties)
+    box, child, order = build_bvh(lo, hi)
+    child, _ = block_leaves(child, order)
+    wbox, wchild, entry = collapse(box, child, width)
+    assert wbox.dtype == np.float32 and wbox.shape == (len(wchild), 6, width)
+    for node, _ in _walk(child):
+        want = sorted((c, k) for c, k in (tuple(child[m]) for m, _ in _walk(child, node))
+                      if c < 0)
+        w, mask = entry[node]
+        got = []
+        for s in range(width):
+            if not (mask >> s) & 1:
+                continue
+            c, k = wchild[w, 0, s], wchild[w, 1, s]
+            got += _wide_leaves(wchild, c, width) if c >= 0 else ([(c, k)] if k > 0 else [])
+        assert sorted(got) == want      # the node's mask covers its leaves and no others
+    # an empty slot's box is +inf (no ray enters it); a leaf's holds its float64 box, rounded
+    # outward by at most one float32 unit in the last place
+    for w in range(len(wchild)):
+        for s in range(width):
+            if wchild[w, 1, s] == 0 and wchild[w, 0, s] < 0:
+                assert np.all(np.isinf(wbox[w, :, s]))
+    leaf_of = {tuple(child[m]): m for m in np.flatnonzero(child[:, 0] < 0)}
+    for w in range(len(wchild)):
+        for s in range(width):
+            c, k = wchild[w, 0, s], wchild[w, 1, s]
+            if c < 0 and k > 0:
+                b = box[leaf_of[(c, k)]]
+                lo32, hi32 = wbox[w, 0:3, s].astype(float), wbox[w, 3:6, s].astype(float)
+                assert np.all(lo32 <= b[0]) and np.all(hi32 >= b[1])
+                assert np.all(b[0] - lo32 <= 2 ** -23 * np.abs(b[0]))
+                assert np.all(hi32 - b[1] <= 2 ** -23 * np.abs(b[1]))
 
 
 def _reference_hit(shapes, o, d):
@@ -185,7 +237,7 @@ def test_packets_find_the_hits_of_every_primitive(spread):
               render.Sphere((0.2, 0.1, 0.0), 0.3),
               render.rectangle(np.diag([0.5, 0.5, 1.0, 1.0]))]
     geo = render.Scene(shapes=shapes).compile().geo
-    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo
+    prim, sph, quad, tri, tri_n, tri_uv, box, child, slots, planes = geo[:10]
     hits = 0
     for _ in range(8):
         o = rng.uniform(-3, 3, 3) + spread * rng.standard_normal((X.PACKET, 3))
