@@ -746,11 +746,21 @@ _FOLD_ARGS = (
     "Add to ``sums`` (see :func:`_fold_row`) every row of a block of a model of Lambertian\n"
     "    lobes (summed albedos ``diffuse``) and one lobe of family ``kind``: f and its\n"
     "    derivatives at a row are folded into the sums at once, never stored.")
-#: The generated source of :func:`_fold_rows` (compiled under this file's name, so that numba
-#: caches it beside the file's other kernels), and of its copy for a model's families.
-FOLD_SOURCE = rows_dispatcher(*_FOLD_ARGS)
-exec(compile(FOLD_SOURCE, __file__, "exec"), globals())
-specialising(_fold_rows, lambda rows: rows_dispatcher(*_FOLD_ARGS, families=rows), globals())
+
+
+def _define_rows(args):
+    """Compile the inline kernel that ``rows_dispatcher(*args)`` writes into this module, under
+    this file's name (so that numba caches it beside the file's other kernels), give it its
+    copies for a model's families (:func:`specialising`), and return its source."""
+    source = rows_dispatcher(*args)
+    exec(compile(source, __file__, "exec"), globals())
+    specialising(globals()[args[0]], lambda rows: rows_dispatcher(*args, families=rows),
+                 globals())
+    return source
+
+
+#: The generated source of :func:`_fold_rows`.
+FOLD_SOURCE = _define_rows(_FOLD_ARGS)
 
 
 #: The loop of :func:`_fold_loss_rows` over a block's rows, for each family (``{call}``: its
@@ -774,12 +784,8 @@ _FOLD_LOSS_ARGS = (
     "Add to ``sums[c]`` the terms (:func:`_residual`, no logarithm) of every row of a block of\n"
     "    a model of Lambertian lobes (summed albedos ``diffuse``) and one lobe of family\n"
     "    ``kind``: f at a row is scored at once, never stored.")
-#: The generated source of :func:`_fold_loss_rows` (compiled under this file's name, as
-#: :data:`FOLD_SOURCE`), and of its copy for a model's families.
-FOLD_LOSS_SOURCE = rows_dispatcher(*_FOLD_LOSS_ARGS)
-exec(compile(FOLD_LOSS_SOURCE, __file__, "exec"), globals())
-specialising(_fold_loss_rows,
-             lambda rows: rows_dispatcher(*_FOLD_LOSS_ARGS, families=rows), globals())
+#: The generated source of :func:`_fold_loss_rows`.
+FOLD_LOSS_SOURCE = _define_rows(_FOLD_LOSS_ARGS)
 
 
 @kernel
