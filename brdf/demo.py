@@ -158,6 +158,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     and one when the run is done; nothing when :func:`brdf.progress.reporting` is quiet.
     True: as on a terminal; False: nothing."""
     import brdf
+    from .models._kernels import every_family
     from .progress import mode, note
     from .render import validate
     from .viz import albedo_plot, inplane_plot, plot_lobes, residual_plot, save_figure, slice_plot
@@ -173,7 +174,8 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     stage = _Stages(progress, summary["stages"])
     with stage("read and synthesise"):
         data = _datasets(seed)
-        _compile_albedo()
+        with every_family():  # the demo fits and draws many families: one compile for all
+            _compile_albedo()
     for name, table in data.items():
         entry = summary["datasets"][name] = {"images": {}}
         with stage(f"{name}: info and checks"):

@@ -93,6 +93,7 @@ def compare(data, specs, *, by="aic", **fit_options):
     Comparison
     """
     from ..io import as_table
+    from ..models._kernels import every_family
     from .nlopt_fit import fit
     if by not in CRITERIA:
         raise InputError(f"unknown criterion {by!r}; criteria: {', '.join(CRITERIA)}")
@@ -102,11 +103,12 @@ def compare(data, specs, *, by="aic", **fit_options):
     table = as_table(data)
     per_spec = _options_per_spec(specs, fit_options)
     results, refitted = [], []
-    for spec, options in zip(specs, per_spec):
-        result = fit(table, spec, **options)
-        again = _refit_collapsed(table, spec, options, result)
-        refitted.append(again is not None)
-        results.append(result if again is None or again.loss >= result.loss else again)
+    with every_family():  # one compile for all the specs' families, not one per spec
+        for spec, options in zip(specs, per_spec):
+            result = fit(table, spec, **options)
+            again = _refit_collapsed(table, spec, options, result)
+            refitted.append(again is not None)
+            results.append(result if again is None or again.loss >= result.loss else again)
     rows = [{**_row(spec, r), "refitted": again}
             for spec, r, again in zip(specs, results, refitted)]
     order = sorted(range(len(rows)), key=lambda i: (rows[i][by], i))

@@ -403,13 +403,17 @@ _EVERY_FAMILY = {"forced": 0, "cached": None}
 
 @contextlib.contextmanager
 def every_family():
-    """Within this context, :func:`family_kinds` gives plain kinds: kernels compile over every
-    family, as :mod:`brdf.precompile` compiles them (then :func:`record_every_family`)."""
+    """Within this context, and in this process after it, :func:`family_kinds` gives plain
+    kinds: kernels compile over every family, as :mod:`brdf.precompile` compiles them (then
+    :func:`record_every_family`). For work that spans many families (a comparison of models,
+    the demo), where compiling once for all beats once per family set; the models it returns
+    then reuse those kernels."""
     _EVERY_FAMILY["forced"] += 1
     try:
         yield
     finally:
         _EVERY_FAMILY["forced"] -= 1
+        _EVERY_FAMILY["cached"] = True  # the kernels over every family serve from now on
 
 
 def _marker():

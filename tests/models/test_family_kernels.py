@@ -69,10 +69,13 @@ def test_models_take_the_kernels_over_every_family_once_precompile_cached_them(m
     own = _kernels.family_kinds(kinds)
     assert own.dtype.names == ("kind_" + "_".join(map(str, sorted(set(kinds)))),)
     assert np.array_equal(own.view(np.int64), kinds)
-    with _kernels.every_family():  # as brdf.precompile compiles them
+    with _kernels.every_family():  # as brdf.precompile and brdf.compare compile them
         assert _kernels.family_kinds(kinds).dtype == np.int64
-    monkeypatch.setitem(_kernels._EVERY_FAMILY, "cached", True)
+    # and after it, in this process: the models the context made reuse those kernels
     assert _kernels.family_kinds(kinds).dtype == np.int64
+    monkeypatch.setitem(_kernels._EVERY_FAMILY, "cached", None)  # looked up again: a marker
+    assert _kernels.family_kinds(kinds).dtype == (
+        np.int64 if _kernels.every_family_cached() else own.dtype)
 
 
 @pytest.mark.slow
