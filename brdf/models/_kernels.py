@@ -403,17 +403,18 @@ _EVERY_FAMILY = {"forced": 0, "cached": None}
 
 @contextlib.contextmanager
 def every_family():
-    """Within this context, and in this process after it, :func:`family_kinds` gives plain
-    kinds: kernels compile over every family, as :mod:`brdf.precompile` compiles them (then
-    :func:`record_every_family`). For work that spans many families (a comparison of models,
-    the demo), where compiling once for all beats once per family set; the models it returns
-    then reuse those kernels."""
+    """Within this context :func:`family_kinds` gives plain kinds: kernels compile over every
+    family, as :mod:`brdf.precompile` compiles them. For work that spans many families (a
+    comparison of models, the demo), where compiling once for all beats once per family set.
+    When it ends, :func:`record_every_family`: the kernels over every family that the work
+    compiled serve every later model, in this process and the next ones."""
     _EVERY_FAMILY["forced"] += 1
     try:
         yield
     finally:
         _EVERY_FAMILY["forced"] -= 1
-        _EVERY_FAMILY["cached"] = True  # the kernels over every family serve from now on
+        if not _EVERY_FAMILY["forced"]:
+            record_every_family()
 
 
 def _marker():
@@ -421,14 +422,18 @@ def _marker():
 
 
 def record_every_family():
-    """Record in the kernel cache that the kernels over every family are in it: from then on,
-    in every process, :func:`family_kinds` gives plain kinds and models use those kernels."""
+    """Record in the kernel cache that kernels over every family are in it: from then on, in
+    every process, :func:`family_kinds` gives plain kinds and models use those kernels (one
+    that is not yet cached compiles over every family, after its notice)."""
+    _EVERY_FAMILY["cached"] = True
     path = _marker()
-    if path is not None:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        with open(path, "w"):
+    if path is not None and not os.path.exists(path):
+        try:
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            with open(path, "w"):
+                pass
+        except OSError:  # a read-only cache: this process still keeps to those kernels
             pass
-        _EVERY_FAMILY["cached"] = True
 
 
 def every_family_cached():

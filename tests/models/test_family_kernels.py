@@ -2,6 +2,7 @@
 values as the kernels over every family (to rounding), one compile per family set, and the
 kernels over every family once brdf.precompile has cached them."""
 
+import contextlib
 import os
 import subprocess
 import sys
@@ -69,13 +70,13 @@ def test_models_take_the_kernels_over_every_family_once_precompile_cached_them(m
     own = _kernels.family_kinds(kinds)
     assert own.dtype.names == ("kind_" + "_".join(map(str, sorted(set(kinds)))),)
     assert np.array_equal(own.view(np.int64), kinds)
+    recorded = []
+    monkeypatch.setattr(_kernels, "record_every_family", lambda: recorded.append(True))
     with _kernels.every_family():  # as brdf.precompile and brdf.compare compile them
-        assert _kernels.family_kinds(kinds).dtype == np.int64
-    # and after it, in this process: the models the context made reuse those kernels
-    assert _kernels.family_kinds(kinds).dtype == np.int64
-    monkeypatch.setitem(_kernels._EVERY_FAMILY, "cached", None)  # looked up again: a marker
-    assert _kernels.family_kinds(kinds).dtype == (
-        np.int64 if _kernels.every_family_cached() else own.dtype)
+        with _kernels.every_family():
+            assert _kernels.family_kinds(kinds).dtype == np.int64
+        assert recorded == []
+    assert recorded == [True]  # the marker, once the outer context ends
 
 
 @pytest.mark.slow
@@ -105,3 +106,24 @@ def test_a_first_check_compiles_its_families_and_precompile_records_every_family
     assert list((tmp_path / "cache").rglob(os.path.basename(marker)))
     after = run(probe)
     assert after.stdout.split() == ["True", "True"] and after.stderr == ""
+    # work over every family (a comparison, the demo) leaves the marker too
+    for marker_file in (tmp_path / "cache").rglob(os.path.basename(marker)):
+        marker_file.unlink()
+    run("import brdf\nfrom brdf.models._kernels import every_family\n"
+        "with every_family():\n"
+        "    brdf.parse('lambert(albedo=0.5) + ggx(alpha=0.3)').eval([[0, 0, 1]], [[0, 0, 1]])")
+    assert list((tmp_path / "cache").rglob(os.path.basename(marker)))
+
+
+def test_a_comparison_fits_over_every_family(monkeypatch):
+    entered = []
+
+    @contextlib.contextmanager
+    def every_family():
+        entered.append(True)
+        yield
+
+    monkeypatch.setattr(_kernels, "every_family", every_family)
+    table = brdf.measure(SPECS[0], "random:300", seed=0)
+    brdf.compare(table, ["lambert + ggx", "lambert + beckmann"], starts=1)
+    assert entered == [True]
