@@ -125,7 +125,9 @@ PROCESSES = 2
 
 def _run(parts):
     """Run ``parts`` (``(group, index)`` pairs of :data:`GROUPS`) in this process, without
-    compile notices (the caller reports): for each, ``(seconds, kernels numba compiled)``."""
+    compile notices (the caller reports), over every family (``every_family``, which records
+    so in the cache when the parts are done): for each, ``(seconds, kernels numba
+    compiled)``."""
     from .models._kernels import every_family
     from .progress import reporting
     notice = announce_first_compiles()
@@ -153,18 +155,7 @@ def compile_groups(names):
     reports): for each, ``{"seconds": ..., "compiled": ...}``, the seconds it took and the
     kernels numba compiled (0: all came from the disk cache)."""
     parts = _parts(names)
-    took = _totals(names, dict(zip(parts, _run(parts))))
-    _record(names)
-    return took
-
-
-def _record(names):
-    """After the groups ``names`` compiled: with the models group, record that the kernels
-    over every family are cached, so that models use them from now on
-    (:func:`brdf.models._kernels.family_kinds`)."""
-    if "models" in names:
-        from .models._kernels import record_every_family
-        record_every_family()
+    return _totals(names, dict(zip(parts, _run(parts))))
 
 
 def _parts(names):
@@ -240,7 +231,6 @@ def precompile(groups=tuple(GROUPS), processes=PROCESSES):
                              mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = {part: pool.submit(_run, [part]) for part in parts}
         done = {part: future.result()[0] for part, future in futures.items()}
-    _record(groups)
     return _totals(groups, done)
 
 
