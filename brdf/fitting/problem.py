@@ -725,6 +725,18 @@ def _fold_row(row, v, out, d, scale, target, weight, offset, sums):
                         + sparse_product(out[0, 2], d[j, 0, 2]))
 
 
+@inline_kernel
+def _lambert_albedos(kinds, offs, p, diffuse):
+    """Set ``diffuse[c]`` to the summed albedos of channel c of the Lambertian lobes of the
+    packed parameters ``p`` (three channels)."""
+    for c in range(3):
+        diffuse[c] = 0.0
+    for l in range(kinds.shape[0]):
+        if kinds[l] == K.LAMBERT:
+            for c in range(3):
+                diffuse[c] += p[offs[l] + c]
+
+
 #: The loop of :func:`_fold_rows` over a block's rows, for each family (``{call}``: its
 #: ``grad_`` at the row, into ``out[0]`` and ``d[:, 0]``, which stay in registers).
 _FOLD_LOOP = """\
@@ -803,12 +815,8 @@ def _fold_loss_blocks(kinds, offs, params, lobe, wi, wo, scale, target, weight, 
     t = with_last_axis(target, 3)
     for j in range(params.shape[0]):
         for c in range(3):
-            diffuse[c] = 0.0
             sums[c] = 0.0
-        for l in range(kinds.shape[0]):
-            if kinds[l] == K.LAMBERT:
-                for c in range(3):
-                    diffuse[c] += params[j, offs[l] + c]
+        _lambert_albedos(kinds, offs, params[j], diffuse)
         q = params[j, offs[lobe]:offs[lobe + 1]]
         _fold_loss_rows(kinds[lobe], q, 3, a, e, diffuse, s, t, weight, f, sums)
         for c in range(3):
@@ -831,12 +839,7 @@ def _fold_blocks(kinds, offs, params, needed, lobe, wi, wo, scale, target, weigh
     out = stack_array(1, 1, 3)[0]
     d = stack_array(SLOTS, 1, 3)
     sums = stack_array(1, 1, FOLD_SUMS)[0, 0]
-    for c in range(3):
-        diffuse[c] = 0.0
-    for l in range(kinds.shape[0]):
-        if kinds[l] == K.LAMBERT:
-            for c in range(3):
-                diffuse[c] += params[offs[l] + c]
+    _lambert_albedos(kinds, offs, params, diffuse)
     kind = kinds[lobe]
     q = params[offs[lobe]:offs[lobe + 1]]
     for b in range(loss.shape[0]):
