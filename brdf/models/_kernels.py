@@ -478,8 +478,8 @@ def specialising(dispatcher, source_of, namespace):
     compiling a call whose kind is a :class:`FamilyKind` from ``source_of(rows)`` instead: the
     source of the same function over those families' rows of the family table only, compiled
     under the file name of ``namespace`` (a module's globals) into it as ``NAME__f<codes>``
-    (a name of its own, so that numba caches each family set apart). Its compiled overload joins ``dispatcher``'s, where the
-    caller's typing finds it."""
+    (a name of its own, so that numba caches each family set apart). Its compiled overload
+    joins ``dispatcher``'s, where the caller's typing finds it."""
     resolve, name = dispatcher.get_call_template, dispatcher.py_func.__name__
     variants = {}
 
