@@ -64,20 +64,36 @@ def _bundled(name):
 DATASETS = {"paper-white": "rgl/paper_white_rgb.bsdf"}
 
 
+def _compile_ahead(render_ready):
+    """The second process's work (:func:`_start_compiling`): the fits' and the renderer's
+    kernels, then, with ``render_ready`` set, the rest of the model kernels over every
+    family (sampling, densities, albedo without its gradient), which the demo does not call
+    but the commands a user runs next do (``export``'s albedo comparison, ``sample``)."""
+    from .precompile import compile_groups
+    compile_groups(["fitting", "render"])
+    render_ready.set()
+    compile_groups(["models"])
+
+
 def _start_compiling():
     """On a cold cache the kernels take minutes to compile; a second process compiles the
     fits' kernels and then the renderer's on the other core while this one compiles the
     models' (evaluation, albedo: :func:`_compile_albedo`) and then reads, checks and fits
     (from the cache it only loads them). A kernel the demo needs before that process has
-    cached it is compiled here as well, and the demo renders once the process is done: either
-    way the results are the same."""
+    cached it is compiled here as well, and the demo renders once the process has the
+    renderer's: either way the results are the same. Returns a function that waits for
+    that (or for the process to end)."""
     import multiprocessing
-    from .precompile import compile_groups
-    worker = multiprocessing.get_context("spawn").Process(target=compile_groups,
-                                                          args=(["fitting", "render"],),
-                                                          daemon=True)
+    context = multiprocessing.get_context("spawn")
+    render_ready = context.Event()
+    worker = context.Process(target=_compile_ahead, args=(render_ready,), daemon=True)
     worker.start()
-    return worker
+
+    def wait_for_render():
+        while worker.is_alive() and not render_ready.wait(0.5):
+            pass
+
+    return wait_for_render
 
 
 def _compile_albedo():
@@ -168,7 +184,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
     inner = shown == "bar"
     out = _prepare(outdir, force)
     t_start = time.perf_counter()
-    compiling = _start_compiling()
+    wait_for_render = _start_compiling()
     size, spp = ((48, 48), 8) if quick else (RENDER_SIZE, RENDER_SPP)
     summary = {"seed": seed, "datasets": {}, "stages": {}}
     stage = _Stages(progress, summary["stages"])
@@ -200,7 +216,7 @@ def run(outdir="results", *, seed=0, force=False, quick=False, progress=None):
                 entry["posterior"] = post.to_dict()
                 entry["images"]["posterior (corner)"] = f"{name}-corner.png"
         with stage(f"{name}: validation renders"):
-            compiling.join()
+            wait_for_render()
             # brdf-fit validate's renders and pictures, named after the data set
             entry["image_metrics"] = validate(table, best.model, out, spp=spp, size=size,
                                               seed=seed, force=True, prefix=f"{name}-",

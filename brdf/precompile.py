@@ -8,8 +8,9 @@ cache.
 On a warm cache it costs the processes' start-up only.
 
 Without it, a model's kernels compile for the families the model holds (a quick first command);
-with it, the kernels over every family are cached, and it records so in the cache
-(:func:`brdf.models._kernels.record_every_family`): from then on every model shares them.
+with it, the kernels over every family are cached, and once it has compiled the models group
+it records so in the cache (:func:`brdf.models._kernels.record_every_family`): from then on
+every model shares them.
 
     python -m brdf.precompile [GROUP ...]      (or: brdf-fit precompile [GROUP ...])
 
@@ -126,13 +127,14 @@ PROCESSES = 2
 def _run(parts):
     """Run ``parts`` (``(group, index)`` pairs of :data:`GROUPS`) in this process, without
     compile notices (the caller reports), over every family (``every_family``, which records
-    so in the cache when the parts are done): for each, ``(seconds, kernels numba
-    compiled)``."""
+    so in the cache when the parts are done, if they include the models group: without its
+    kernels over every family, a later model does better with its own families'): for each,
+    ``(seconds, kernels numba compiled)``."""
     from .models._kernels import every_family
     from .progress import reporting
     notice = announce_first_compiles()
     out = []
-    with reporting(quiet=True), every_family():
+    with reporting(quiet=True), every_family(record=any(g == "models" for g, _ in parts)):
         for group, index in parts:
             start, before = time.perf_counter(), notice.compiled
             GROUPS[group][index][0]()

@@ -192,3 +192,16 @@ def test_demo_refuses_a_non_empty_folder(tmp_path):
     (tmp_path / "keep.txt").write_text("mine")
     with pytest.raises(OutputError, match="not empty"):
         demo.run(tmp_path, quick=True)
+
+
+def test_the_second_process_compiles_the_renderer_before_the_rest_of_the_models(monkeypatch):
+    """The demo waits for the fits' and the renderer's kernels only; the rest of the model
+    kernels, which the commands a user runs next need, compile after them."""
+    import threading
+    from brdf import precompile
+    events, ready = [], threading.Event()
+    monkeypatch.setattr(precompile, "compile_groups",
+                        lambda names: events.append((list(names), ready.is_set())))
+    demo._compile_ahead(ready)
+    assert events == [(["fitting", "render"], False), (["models"], True)]
+    assert ready.is_set()

@@ -398,23 +398,27 @@ def _typeof_family_kinds(value, context):
 _FAMILY_DTYPES = {}
 
 
-_EVERY_FAMILY = {"forced": 0, "cached": None}
+_EVERY_FAMILY = {"forced": 0, "cached": None, "record": False}
 
 
 @contextlib.contextmanager
-def every_family():
+def every_family(record=True):
     """Within this context :func:`family_kinds` gives plain kinds: kernels compile over every
     family, as :mod:`brdf.precompile` compiles them. For work that spans many families (a
     comparison of models, the demo), where compiling once for all beats once per family set.
-    When it ends, :func:`record_every_family`: the kernels over every family that the work
-    compiled serve every later model, in this process and the next ones."""
+    When the outermost context ends, if ``record``, :func:`record_every_family`: the kernels
+    over every family that the work compiled serve every later model, in this process and the
+    next ones. Work that compiles no model kernels (the renderer's alone) passes False."""
     _EVERY_FAMILY["forced"] += 1
+    _EVERY_FAMILY["record"] |= bool(record)
     try:
         yield
     finally:
         _EVERY_FAMILY["forced"] -= 1
         if not _EVERY_FAMILY["forced"]:
-            record_every_family()
+            record, _EVERY_FAMILY["record"] = _EVERY_FAMILY["record"], False
+            if record:
+                record_every_family()
 
 
 def _marker():

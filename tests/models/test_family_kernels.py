@@ -77,12 +77,20 @@ def test_models_take_the_kernels_over_every_family_once_precompile_cached_them(m
             assert _kernels.family_kinds(kinds).dtype == np.int64
         assert recorded == []
     assert recorded == [True]  # the marker, once the outer context ends
+    with _kernels.every_family(record=False):  # work that compiles no model kernels
+        assert _kernels.family_kinds(kinds).dtype == np.int64
+    assert recorded == [True]
+    with _kernels.every_family(record=False):
+        with _kernels.every_family():  # an inner context that records still does
+            pass
+    assert recorded == [True, True]
 
 
 @pytest.mark.slow
 def test_a_first_check_compiles_its_families_and_precompile_records_every_family(tmp_path):
-    """On an empty cache: a check compiles, a second loads; brdf.precompile of the models
-    group leaves the marker after which a model takes the kernels over every family."""
+    """On an empty cache: a check compiles, a second loads; brdf.precompile of the tables
+    group leaves no marker, of the models group the marker after which a model takes the
+    kernels over every family."""
     env = {**os.environ, "NUMBA_CACHE_LOCATOR_CLASSES": "UserProvidedCacheLocator",
            "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     probe = ("import brdf; from brdf.models import _kernels\n"
@@ -102,6 +110,9 @@ def test_a_first_check_compiles_its_families_and_precompile_records_every_family
     warm = run(probe)
     assert warm.stdout == cold.stdout and warm.stderr == ""
     marker = _kernels.stamped_marker(_kernels.eval_array, "every-family-kernels")
+    # the tables group compiles no model kernels: no marker, models keep their own families'
+    run("from brdf.precompile import compile_groups; compile_groups(['tables'])")
+    assert not list((tmp_path / "cache").rglob(os.path.basename(marker)))
     run("from brdf.precompile import compile_groups; compile_groups(['models'])")
     assert list((tmp_path / "cache").rglob(os.path.basename(marker)))
     after = run(probe)
