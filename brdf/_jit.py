@@ -13,6 +13,9 @@ numba internals, so ``pyproject.toml`` pins numba to the minor release
 ``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
 """
 
+import functools
+import inspect
+
 import llvmlite.binding as ll
 import numba
 from numba.core import cgutils, codegen, datamodel, types
@@ -184,6 +187,65 @@ def parallel_kernel(fn):
     """Compile an array kernel whose ``prange`` loops run on all cores."""
     return _inputs_as_writable(quick_loading(numba.njit(
         fn, cache=True, fastmath=FASTMATH, error_model="numpy", parallel=True)))
+
+
+def threaded_kernel(*rows):
+    """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
+    call it on equal chunks of those rows at once, one per thread numba would use
+    (:func:`numba.get_num_threads`, which :func:`brdf._threads.serial_below` lowers to one):
+    a :func:`parallel_kernel`'s speed without numba's parallel compile (its outlined loop body
+    and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
+    whose first axis is the loop's; one whose first axis has another length (an empty
+    placeholder) goes whole to every chunk. The call returns the sum of the chunks' results
+    (None for a kernel without one); each row's values do not depend on the chunks."""
+    def compile_rows(fn):
+        names = list(inspect.signature(fn).parameters)
+        dispatcher = _inputs_as_writable(quick_loading(numba.njit(
+            fn, cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)))
+        return RowThreads(dispatcher, tuple(names.index(r) for r in rows))
+    return compile_rows
+
+
+class RowThreads:
+    """A :func:`threaded_kernel`: called like its dispatcher (``dispatcher``), whose other
+    attributes it passes on."""
+
+    def __init__(self, dispatcher, rows):
+        self.dispatcher, self.rows = dispatcher, rows
+        functools.update_wrapper(self, dispatcher.py_func)
+
+    def __getattr__(self, name):
+        return getattr(self.dispatcher, name)
+
+    def __call__(self, *args):
+        n = args[self.rows[0]].shape[0]
+        threads = min(numba.get_num_threads(), n)
+        if threads <= 1:
+            return self.dispatcher(*args)
+        # chunk t ends at ceil(n t / threads): rows dealt out to the threads like cards
+        # (Model.albedo's) and sorted by hand then make exactly one hand per chunk
+        cuts = [-(-n * t // threads) for t in range(threads + 1)]
+
+        def chunk(t):
+            a, b = cuts[t], cuts[t + 1]
+            return self.dispatcher(*(arg[a:b] if i in self.rows and arg.shape[0] == n else arg
+                                     for i, arg in enumerate(args)))
+
+        others = [_row_pool().submit(chunk, t) for t in range(1, threads)]
+        results = [chunk(0)] + [f.result() for f in others]
+        return None if results[0] is None else sum(results)
+
+
+_ROW_POOL = []
+
+
+def _row_pool():
+    """The threads :class:`RowThreads` hands chunks to (made on first use)."""
+    if not _ROW_POOL:
+        from concurrent.futures import ThreadPoolExecutor
+        _ROW_POOL.append(ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                            thread_name_prefix="brdf-rows"))
+    return _ROW_POOL[0]
 
 
 @intrinsic

@@ -15,7 +15,7 @@ import pytest
 from numba import prange, typeof
 from numba.core import types
 
-from brdf._jit import allocating_kernel, fetch_add, kernel, parallel_kernel
+from brdf._jit import allocating_kernel, fetch_add, kernel, parallel_kernel, threaded_kernel
 
 
 @kernel
@@ -162,3 +162,55 @@ def test_a_view_with_a_constant_last_axis_counts_its_reference():
     done = subprocess.run([sys.executable, "-c", _VIEWS], capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0 and done.stdout.split() == ["10000.0"], done.stderr[-2000:]
+
+
+@threaded_kernel("a", "out")
+def _rows_doubled(a, scale, out):
+    n = 0
+    for k in range(a.shape[0]):
+        out[k] = 2.0 * a[k] + scale[0]
+        n += a[k] < 0.0
+    return n
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
+@pytest.mark.parametrize("n", [1, 2, 7, 1001])
+def test_a_threaded_kernel_splits_its_rows_and_sums_its_results(n):
+    """Rows go to chunks, one per thread; an argument of another length goes whole to each
+    (``scale``); the counts add up; one thread gives the same bytes."""
+    a = np.linspace(-1.0, 2.0, n)
+    out2, out1 = np.empty(n), np.empty(n)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(2)
+        negative = _rows_doubled(a, np.array([0.5]), out2)
+        numba.set_num_threads(1)
+        assert _rows_doubled(a, np.array([0.5]), out1) == negative == np.sum(a < 0.0)
+    finally:
+        numba.set_num_threads(before)
+    np.testing.assert_array_equal(out2, 2.0 * a + 0.5)
+    assert out1.tobytes() == out2.tobytes()
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
+def test_the_model_kernels_give_the_same_bytes_on_one_thread_and_two():
+    """eval, pdf, sample and albedo (threaded kernels) of a mixture, on an odd number of
+    rows: each row's values do not depend on which thread computed them."""
+    import brdf
+    from brdf.geometry import directions_from_degrees
+    m = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, fresnel=schlick(f0=0.04))")
+    rng = np.random.default_rng(0)
+    t, p = rng.uniform(0.0, 89.0, (2, 1001)), rng.uniform(0.0, 360.0, (2, 1001))
+    wi, wo = directions_from_degrees(t[0], p[0]), directions_from_degrees(t[1], p[1])
+    u = rng.random((1001, 2))
+
+    def run(threads):
+        before = numba.get_num_threads()
+        numba.set_num_threads(threads)
+        try:
+            return (m.eval(wi, wo), m.pdf(wi, wo), *m.sample(wi, u), m.albedo(wi[:9]))
+        finally:
+            numba.set_num_threads(before)
+
+    for one, two in zip(run(1), run(2)):
+        assert one.tobytes() == two.tobytes()

@@ -50,7 +50,7 @@ from numba.core.typeconv import Conversion
 from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic
 
-from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel, threaded_kernel
 from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
@@ -456,7 +456,7 @@ def family_kinds(kinds):
     (:func:`every_family_cached`), or within :func:`every_family`, these are the plain kinds,
     and every model shares those kernels. Otherwise their numba type holds the model's set of
     families, and the kernels compile for that set alone: a first ``check`` of ``lambert +
-    ggx`` on an empty cache compiles in 15 s of CPU instead of 31 s, each further family set
+    ggx`` on an empty cache compiles in 11.5 s of CPU instead of 31 s, each further family set
     in less (the families' own kernels are cached apart and shared).
     """
     kinds = np.ascontiguousarray(kinds, dtype=np.int64)
@@ -912,20 +912,20 @@ def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
     return bad
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out")
 def eval_array(kinds, offs, p, nch, wi, wo, out, low, high):
     """Set ``out`` (n, C) to f(wi, wo); returns the number of pairs where the squared length of
     wi or wo is outside [low, high] (NaN included): the screen of unit vectors, made here
     while the rows are in cache (as a pass of its own it cost a sixth of the time).
 
-    Blocks of :data:`ROWS` rows run on all cores; per block, one pass per lobe over its rows,
+    Blocks of :data:`ROWS` rows, on all cores; per block, one pass per lobe over its rows,
     each a loop over a single formula that LLVM vectorises (see :func:`lobe_eval_block`).
     ``out`` is written before it is read, so a freshly allocated array costs one page fault
     per page (adding to the zeros of ``np.zeros`` cost two: the read maps the shared zero
     page, the write then copies it)."""
     n = wi.shape[0]
     bad = 0
-    for b in prange((n + ROWS - 1) // ROWS):
+    for b in range((n + ROWS - 1) // ROWS):
         lo = b * ROWS
         hi = min(n, lo + ROWS)
         bad += eval_rows(kinds, offs, p, nch, wi[lo:hi], wo[lo:hi], out[lo:hi], low, high)
@@ -943,14 +943,14 @@ def grad_array(kinds, offs, p, nch, wi, wo, out, d):
                              k, d[offs[l]:offs[l + 1]])
 
 
-#: Directions per batch of the parallel drivers of :func:`mixture_batch`.
+#: Directions per batch of the threaded drivers of :func:`mixture_batch`.
 BATCH = 256
 
 
 @allocating_kernel
 def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
-    """:func:`pdf_array` for the m directions from k0 on (a kernel of its own: the parallel
-    loop's body stays small, and numba lowers small parallel bodies much faster)."""
+    """:func:`pdf_array` for the m directions from k0 on (a kernel of its own, which allocates
+    the batch's work space)."""
     q, f, u, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
     for t in range(m):
         for a in range(3):
@@ -992,17 +992,17 @@ def _batch_space(nl, nch):
             np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64))
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out")
 def pdf_array(kinds, offs, p, nch, wi, wo, out):
     n = wi.shape[0]
-    for b in prange((n + BATCH - 1) // BATCH):
+    for b in range((n + BATCH - 1) // BATCH):
         _pdf_batch(kinds, offs, p, nch, wi, wo, out, b * BATCH, min(BATCH, n - b * BATCH))
 
 
-@parallel_kernel
+@threaded_kernel("wi", "u", "wo", "pdf", "weight")
 def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
     n = wi.shape[0]
-    for b in prange((n + BATCH - 1) // BATCH):
+    for b in range((n + BATCH - 1) // BATCH):
         _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, b * BATCH,
                       min(BATCH, n - b * BATCH))
 
@@ -1229,7 +1229,7 @@ def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err,
     return n
 
 
-@parallel_kernel
+@threaded_kernel("wi", "out", "err", "panels", "grad")
 def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels, grad):
     """Directional albedo per incident direction: delta lobes exactly, others adaptively.
 
@@ -1239,7 +1239,7 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels
     parameters ``p`` (models of single-term, non-delta lobes only: ``Model.albedo_gradient``).
     """
     wanted = grad.shape[1] > 0
-    for k in prange(wi.shape[0]):
+    for k in range(wi.shape[0]):
         ix, iy, iz = wi[k, 0], wi[k, 1], wi[k, 2]
         for l in range(kinds.shape[0]):
             kind = kinds[l]

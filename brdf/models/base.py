@@ -622,7 +622,7 @@ class Model(Component):
             shared = shared.reshape(-1)
         else:
             first = shared = np.arange(len(flat))
-        # numba hands each thread a contiguous chunk of the directions: dealing them out like
+        # each thread gets a contiguous chunk of the directions: dealing them out like
         # cards gives every thread its share of the costly grazing ones, wherever they cluster
         deal = np.argsort(np.arange(len(first)) % numba.get_num_threads(), kind="stable")
         c = self._compiled() if nch is None else self.compile(nch)
