@@ -641,8 +641,8 @@ def _pack_lights(scene, emitters, scale):
             rows.append((L.DIRECTIONAL, f, math.pi * scale * scale * f[3:6].mean()))
         else:
             raise InputError(f"{where}: not a light")
-    env, env_rows, env_cols = np.zeros((1, 1, 3)), np.zeros(2), np.zeros((1, 2))
-    row_guide, col_guide = np.zeros(1, np.int64), np.zeros((1, 1), np.int64)
+    env, env_pmf = np.zeros((1, 1, 3)), np.ones((1, 1))
+    env_prob, env_alias = np.ones(1), np.zeros(1, np.int64)
     env_cos, env_edge = np.zeros(2), np.zeros((2, 2))
     env_light = -1
     if scene.environment is not None:
@@ -653,8 +653,8 @@ def _pack_lights(scene, emitters, scale):
         if e.map is not None:
             from .image import read_image
             env = read_image(e.map, "environment map", channels=3)
-            env_rows, env_cols = _env_distribution(env)
-            row_guide, col_guide = _guide(env_rows), np.stack([_guide(c) for c in env_cols])
+            env_pmf = _env_distribution(env)
+            env_prob, env_alias = L.alias_table(env_pmf.ravel())
             env_cos, env_edge = _env_edges(env)
             f[6:15] = _env_frame(e.up).ravel()
             f[0] = 1.0
@@ -672,8 +672,8 @@ def _pack_lights(scene, emitters, scale):
         pmf /= pmf.sum()
     gonio = (np.array(gonio, float) if gonio
              else np.zeros((1, L.GONIO_THETA, L.GONIO_PHI)))
-    return L.Lights(ltype, lf, pmf, gonio, env, env_rows, env_cols, row_guide, col_guide,
-                    env_cos, env_edge, env_light)
+    return L.Lights(ltype, lf, pmf, gonio, env, env_pmf, env_prob, env_alias, env_cos,
+                    env_edge, env_light)
 
 
 def _env_frame(up):
@@ -688,7 +688,7 @@ def _env_frame(up):
 
 
 def _env_distribution(env):
-    """Row marginal and per-row conditional CDFs over the map's pixels of sin(theta) times the
+    """Probabilities ``(h, w)`` of the map's pixels in proportion to sin(theta) times the
     largest luminance the bilinear radiance (``_lights._env_bilinear``) takes in the pixel
     (PBR 3rd ed. 14.2.4, with the bound in place of the pixel's value as pbrt-v4's
     ImageInfiniteLight samples its filtered image): wherever the radiance is not zero
@@ -706,21 +706,7 @@ def _env_distribution(env):
     p = lum * np.sin(theta)[:, None]
     if p.sum() <= 0:
         p = np.sin(theta)[:, None] * np.ones((1, w))
-    row = p.sum(axis=1)
-    rows = np.concatenate([[0.0], np.cumsum(row) / row.sum()])
-    safe = np.where(row > 0, row, 1.0)[:, None]
-    cols = np.concatenate([np.zeros((h, 1)), np.cumsum(p, axis=1) / safe], axis=1)
-    cols[row <= 0, 1:] = np.arange(1, w + 1) / w
-    rows[-1] = 1.0
-    cols[:, -1] = 1.0
-    return rows, cols
-
-
-def _guide(cdf):
-    """Guide table of a CDF of n bins (n + 1 values from 0 to 1): the bin holding k / n for
-    each k < n, the start of the kernels' search (``_lights._invert``)."""
-    n = len(cdf) - 1
-    return np.clip(np.searchsorted(cdf, np.arange(n) / n, side="right") - 1, 0, n - 1)
+    return p / p.sum()
 
 
 def _env_edges(env):

@@ -268,11 +268,10 @@ def test_bright_region_light_and_bsdf_sampling_agree(tmp_path):
     assert runs["light"].variance[on].mean() < 0.1 * runs["bsdf"].variance[on].mean()
 
 
-def test_map_lookup_finds_libms_pixel_and_the_bisections_bin(tmp_path):
+def test_map_lookup_finds_libms_pixel(tmp_path):
     """The lookup's polynomial angles, settled against the pixels' edges, give the pixel of
     libm's atan2 and acos (Mitsuba's layout) wherever rounding cannot take either side, and
-    sin(theta) to rounding; the guided inversion of the map's CDFs (zero rows and pixels
-    among them) finds the bin of a bisection (np.searchsorted) for any u."""
+    sin(theta) to rounding."""
     from brdf.render import _lights as L
     rng = np.random.default_rng(5)
     img = rng.random((16, 32, 3)) * (rng.random((16, 32, 1)) < 0.7)
@@ -296,14 +295,71 @@ def test_map_lookup_finds_libms_pixel_and_the_bisections_bin(tmp_path):
         assert s == pytest.approx(np.sin(v[k] * np.pi), abs=1e-12)
         if clear[k]:
             assert (i, j) == (min(int(v[k] * h), h - 1), min(int(u[k] * w), w - 1)), k
-    for cdf, guide in [(lights.rows, lights.row_guide)] + list(zip(lights.cols,
-                                                                    lights.col_guide)):
-        n = len(cdf) - 1
-        xs = np.concatenate([rng.random(50), cdf[:-1], np.nextafter(cdf[1:-1], 0)])
-        for x in xs[xs < 1.0]:                  # a CDF's sums may round past 1 by an ulp
-            i, frac = L._invert(cdf, guide, x)
-            assert i == min(np.searchsorted(cdf, x, side="right") - 1, n - 1), (x, cdf)
-            assert cdf[i] <= x < cdf[i + 1] and 0.0 <= frac <= 1.0 + 1e-12
+
+
+def _sampled_map(tmp_path):
+    from brdf.render import _lights as L
+    rng = np.random.default_rng(5)
+    img = rng.random((16, 32, 3)) * (rng.random((16, 32, 1)) < 0.7)
+    img[3] = 0.0                                # a row of zeros, and zero pixels elsewhere
+    return L, img, _env_scene(render.Environment(1.0, _write_map(tmp_path / "m.exr", img))
+                              ).compile().lights
+
+
+def test_the_alias_table_gives_each_pixel_its_probability(tmp_path):
+    """Walker's table of the map's pixels (Vose's construction): a pixel's probability, 1/n
+    times its own bin's prob plus 1 - prob of each bin aliased to it, is env_pmf's to
+    rounding; a pixel of probability 0 is never kept, nor aliased to."""
+    L, img, lights = _sampled_map(tmp_path)
+    pmf, prob, alias = lights.env_pmf.ravel(), lights.env_prob, lights.env_alias
+    n = len(pmf)
+    assert prob.shape == alias.shape == (n,) and np.all((prob >= 0) & (prob <= 1))
+    got = prob.copy()
+    np.add.at(got, alias, 1.0 - prob)
+    np.testing.assert_allclose(got / n, pmf, rtol=1e-12, atol=1e-15)
+    assert np.all(prob[pmf == 0] == 0) and np.all(pmf[alias[prob < 1]] > 0)
+    assert pmf.sum() == pytest.approx(1.0, abs=1e-12)
+    # zero weights among others, not normalised: kept never, aliased to never
+    prob, alias = L.alias_table(np.array([0.0, 0.0, 3.0, 1.0, 0.0, 6.0]))
+    np.testing.assert_array_equal(prob[[0, 1, 4]], 0.0)
+    assert set(alias[prob < 1]) <= {2, 3, 5}
+    got = prob.copy()
+    np.add.at(got, alias, 1.0 - prob)
+    np.testing.assert_allclose(got / 6, [0.0, 0.0, 0.3, 0.1, 0.0, 0.6], rtol=1e-15, atol=0)
+
+
+@pytest.mark.slow
+def test_the_map_sampler_draws_its_pixels_and_densities(tmp_path):
+    """Pixels drawn with u1 follow env_pmf (Pearson's chi-square, cells pooled below 5
+    expected), the rest of u1 is uniform in [0, 1), and the density each sample reports is
+    env_lookup's at the direction drawn (what MIS weighs it with), away from pixel edges."""
+    from scipy import stats
+    L, img, lights = _sampled_map(tmp_path)
+    pmf = lights.env_pmf.ravel()
+    rng = np.random.default_rng(7)
+    n = 100_000
+    picks, rests = np.empty(n, np.int64), np.empty(n)
+    for k, u in enumerate(rng.random(n)):
+        picks[k], rests[k] = L._alias_pick(lights.env_prob, lights.env_alias, u)
+    observed = np.bincount(picks, minlength=len(pmf))
+    expected = n * pmf
+    assert observed[pmf == 0].sum() == 0
+    small = (expected < 5) & (pmf > 0)
+    obs = np.append(observed[expected >= 5], observed[small].sum())
+    exp = np.append(expected[expected >= 5], expected[small].sum())
+    obs, exp = obs[exp > 0], exp[exp > 0]
+    chi2 = ((obs - exp) ** 2 / exp).sum()
+    assert stats.chi2.sf(chi2, len(obs) - 1) > 1e-3, chi2
+    assert 0.0 <= rests.min() and rests.max() < 1.0
+    assert stats.kstest(rests, "uniform").pvalue > 1e-3
+    e = lights.env_light
+    agree = 0
+    u = rng.random((2000, 2))
+    for u1, u2 in u:
+        dx, dy, dz, r, g, b, pdf = L._sample_env(lights, e, u1, u2)
+        _, _, _, looked = L.env_lookup(lights, e, dx, dy, dz)
+        agree += pdf == pytest.approx(looked, rel=1e-9)
+    assert agree >= 0.995 * len(u), agree
 
 
 def test_map_mean_matches_mitsuba(tmp_path):
