@@ -205,26 +205,27 @@ def alias_table(p):
     small, large = np.empty(n, np.int64), np.empty(n, np.int64)
     ns = nl = 0
     for k in range(n):
-        if scaled[k] < 1.0:
-            small[ns] = k
-            ns += 1
-        else:
-            large[nl] = k
-            nl += 1
+        ns, nl = _push(k, scaled, small, large, ns, nl)
     while ns > 0 and nl > 0:
         ns -= 1
         nl -= 1
         lo, hi = small[ns], large[nl]
         prob[lo], alias[lo] = scaled[lo], hi
         scaled[hi] = (scaled[hi] + scaled[lo]) - 1.0
-        if scaled[hi] < 1.0:
-            small[ns] = hi
-            ns += 1
-        else:
-            large[nl] = hi
-            nl += 1
+        ns, nl = _push(hi, scaled, small, large, ns, nl)
     # what is left on either stack is 1 up to rounding: kept for sure (prob 1, alias itself)
     return prob, alias
+
+
+@inline_kernel
+def _push(k, scaled, small, large, ns, nl):
+    """Put bin k on Vose's list of bins below the mean weight or on the list of the others;
+    returns the lists' new lengths."""
+    if scaled[k] < 1.0:
+        small[ns] = k
+        return ns + 1, nl
+    large[nl] = k
+    return ns, nl + 1
 
 
 @inline_kernel
