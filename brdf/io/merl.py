@@ -17,9 +17,8 @@ import functools
 import math
 
 import numpy as np
-from numba import prange
 
-from .._jit import kernel, parallel_kernel
+from .._jit import kernel, threaded_kernel
 from ..errors import FormatError, InputError
 from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
 from ..table import HORIZON_SLACK, Table, sample_values
@@ -497,24 +496,23 @@ def trilinear_pair(grid, filled, ix, iy, iz, ox, oy, oz, out, k):
     return ok
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out", "inside")
 def _trilinear(grid, filled, wi, wo, out, inside):
     """Trilinear lookup of every pair (:func:`trilinear_pair`); 0 below the horizon."""
-    for k in prange(wi.shape[0]):
+    for k in range(wi.shape[0]):
         if wi[k, 2] <= 0.0 or wo[k, 2] <= 0.0:
             out[k, :] = 0.0
             inside[k] = False
             continue
-        # prange counts in uint64; other callers pass int64, which would compile a twin
         inside[k] = trilinear_pair(grid, filled, wi[k, 0], wi[k, 1], wi[k, 2],
                                    wo[k, 0], wo[k, 1], wo[k, 2], out, np.int64(k))
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out", "inside")
 def _nearest(grid, filled, wi, wo, out, inside):
     """Value of the nearest node (the nearest valid sample where that node is missing)."""
     nch = grid.shape[3]
-    for k in prange(wi.shape[0]):
+    for k in range(wi.shape[0]):
         above, u, v, w = _pair_coordinates(wi, wo, np.int64(k), out, inside)
         if not above:
             continue

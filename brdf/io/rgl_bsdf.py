@@ -42,9 +42,8 @@ import struct
 from dataclasses import dataclass
 
 import numpy as np
-from numba import prange
 
-from .._jit import inline_kernel, parallel_kernel
+from .._jit import inline_kernel, threaded_kernel
 from ..errors import FormatError, InputError
 from ..geometry import flat_pairs, reflect, spherical_to_cartesian
 from ..table import Table
@@ -866,9 +865,9 @@ def _invert(pdf, cond, marg, k, w, ux, uy):
     return sx, sy
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out")
 def _unit_square_kernel(wi, wo, theta_nodes, pdf, cond, marg, out):
-    for n in prange(wi.shape[0]):
+    for n in range(wi.shape[0]):
         theta_i, _, uh, vh, _ = _angles(wi[n], wo[n])
         k, w = _slice_interval(theta_nodes, theta_i)
         out[n, 0], out[n, 1] = _invert(pdf, cond, marg, k, w, uh, vh)
@@ -897,7 +896,7 @@ def _add_measured(wi, wo, theta_nodes, pdf, cond, marg, stored, ndf, sigma, jaco
         out[n, c] += value * scale
 
 
-@parallel_kernel
+@threaded_kernel("wi", "wo", "out", "inside")
 def _eval_kernel(wi, wo, theta_nodes, pdf, cond, marg, stored, ndf, sigma, jacobian, clip,
                  reciprocal, cos_valid, out, inside):
     """f_r of each pair into ``out`` (n, C), 0 below the horizon; ``inside[n]`` says whether
@@ -907,7 +906,7 @@ def _eval_kernel(wi, wo, theta_nodes, pdf, cond, marg, stored, ndf, sigma, jacob
     reference reader's value. Reciprocal: (g(wi, wo) + g(wo, wi)) / max(cos theta_i +
     cos theta_o, cos_valid) with g the measured f_r cos(theta_o) of each order (RglTable.eval).
     """
-    for n in prange(wi.shape[0]):
+    for n in range(wi.shape[0]):
         out[n, :] = 0.0
         if wi[n, 2] <= 0.0 or wo[n, 2] <= 0.0:
             inside[n] = False

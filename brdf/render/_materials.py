@@ -28,9 +28,8 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import prange
 
-from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
 from ..io.merl import trilinear_pair
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, continuous,
                                cosine_over_pdf, mixture_batch)
@@ -252,12 +251,12 @@ def _driver_space(mats, m, v, k0, count, lists, counts):
             np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64))
 
 
-@parallel_kernel
+@threaded_kernel("v", "u", "l", "pdf", "weight")
 def sample_array(mats, m, v, u, l, pdf, weight):
     """Array driver of :func:`bsdf_shade`'s draw for material m (tests, plots): l, pdf, weight
     for each view direction v[k] and uniform pair u[k]."""
     n = v.shape[0]
-    for b in prange((n + BATCH - 1) // BATCH):
+    for b in range((n + BATCH - 1) // BATCH):
         k0 = b * BATCH
         c = min(BATCH, n - k0)
         lists, counts = np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64)
@@ -274,11 +273,11 @@ def sample_array(mats, m, v, u, l, pdf, weight):
                 weight[k0 + t, a] = f[DRAW, t, a]
 
 
-@parallel_kernel
+@threaded_kernel("v", "l", "pdf")
 def pdf_array(mats, m, v, l, pdf):
     """Array driver of :func:`bsdf_shade`'s density for material m."""
     n = v.shape[0]
-    for b in prange((n + BATCH - 1) // BATCH):
+    for b in range((n + BATCH - 1) // BATCH):
         k0 = b * BATCH
         c = min(BATCH, n - k0)
         lists, counts = np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64)
