@@ -70,18 +70,22 @@ if not getattr(codegen.CPUCodeLibrary, "_brdf_private_copies", False):
     _private_copies(codegen.CPUCodeLibrary)
 
 
-def _without_literals(dispatcher):
-    """``dispatcher``, typed for non-literal arguments wherever a kernel calls it.
+def _without_literals(dispatcher, keep=()):
+    """``dispatcher``, typed for non-literal arguments wherever a kernel calls it, except the
+    parameters named in ``keep``.
 
     numba compiles a called function once per set of argument types, and a constant argument
     (``nch=3``, a lobe index 0, a family code) has its own literal type: the same kernel was
     compiled again for each mix of constants and variables its callers passed. Constants gain
     nothing from it here, since LLVM inlines the callee and folds them all the same."""
     resolve = dispatcher.get_call_template
+    names = list(inspect.signature(dispatcher.py_func).parameters)
+    kept = [name in keep for name in names]
 
     def get_call_template(args, kws):
-        return resolve(tuple(types.unliteral(a) for a in args),
-                       {k: types.unliteral(v) for k, v in kws.items()})
+        return resolve(tuple(a if i < len(kept) and kept[i] else types.unliteral(a)
+                             for i, a in enumerate(args)),
+                       {k: v if k in keep else types.unliteral(v) for k, v in kws.items()})
 
     dispatcher.get_call_template = get_call_template
     return _inputs_as_writable(dispatcher)
@@ -158,11 +162,19 @@ def inline_kernel(fn):
     is linked into a caller (:data:`_ALWAYS_INLINE`), each is typed once per set of argument
     types, and the caller's machine code is the same (``lambert + ggx`` eval bit for bit).
 
-    Unlike :func:`kernel`, constant arguments keep their literal types (``nch=3``, a family's
-    variant): the callee's own loops are then specialised before LLVM inlines it (with ``nch``
-    read at run time, ``lambert + ggx`` eval ran at 0.4 times the speed)."""
-    return _always_inlined(_borrowing(_inputs_as_writable(quick_loading(numba.njit(
-        fn, cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)))))
+    Unlike :func:`kernel`, a constant channel count keeps its literal type (``nch=3``): the
+    callee's own loops over channels are then specialised before LLVM inlines it (with ``nch``
+    read at run time, ``lambert + ggx`` eval ran at 0.4 times the speed). Other constants (a
+    row index 0, a flag, a family's variant) are typed as variables, as :func:`kernel` does:
+    LLVM folds them once the callee is inlined, whereas their literal types compiled the same
+    functions up to four times (a first ``check`` of ``lambert + ggx`` spent 13.0 s compiling
+    with them, 11.7 s without)."""
+    return _always_inlined(_borrowing(_without_literals(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False)), keep=_LITERAL)))
+
+
+#: The parameters of an :func:`inline_kernel` whose constant arguments keep their literal type.
+_LITERAL = ("nch",)
 
 
 #: Native (mangled) names of the overloads of :func:`inline_kernel` compiled or loaded in this

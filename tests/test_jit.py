@@ -15,7 +15,8 @@ import pytest
 from numba import prange, typeof
 from numba.core import types
 
-from brdf._jit import allocating_kernel, fetch_add, kernel, parallel_kernel, threaded_kernel
+from brdf._jit import (allocating_kernel, fetch_add, inline_kernel, kernel, parallel_kernel,
+                       threaded_kernel)
 
 
 @kernel
@@ -50,6 +51,33 @@ def test_constant_and_variable_arguments_share_one_specialisation():
     assert tuple(args) == (typeof(a), types.int64, types.int64)
     assert all("Literal" not in str(sig) for sig in _scaled.signatures)
     assert len(_scaled.overloads) == 1
+
+
+@inline_kernel
+def _channels_scaled(a, nch, k):
+    return a[k] * nch
+
+
+@kernel
+def _inline_with_constants(a):
+    return _channels_scaled(a, 3, 0)
+
+
+@kernel
+def _inline_with_variables(a, nch, k):
+    return _channels_scaled(a, nch, k)
+
+
+def test_an_inline_kernel_keeps_only_a_constant_channel_count_literal():
+    a = np.arange(4.0)
+    assert _inline_with_constants(a) == 0.0
+    assert _inline_with_variables(a, 2, 3) == 6.0
+    # nch=3 specialises the callee's loops over channels; a constant row index gains nothing
+    _, _, args, _ = _channels_scaled.get_call_template(
+        (typeof(a), types.literal(3), types.literal(0)), {})
+    assert tuple(args) == (typeof(a), types.literal(3), types.int64)
+    _, _, args, _ = _channels_scaled.get_call_template((typeof(a), types.int64, types.int64), {})
+    assert tuple(args) == (typeof(a), types.int64, types.int64)
 
 
 def test_read_only_inputs_share_the_writable_specialisation():
