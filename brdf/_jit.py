@@ -208,7 +208,7 @@ def threaded_kernel(*rows):
     a :func:`parallel_kernel`'s speed without numba's parallel compile (its outlined loop body
     and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
     whose first axis is the loop's; one whose first axis has another length (an empty
-    placeholder) goes whole to every chunk. The call returns the sum of the chunks' results
+    placeholder), or None, goes whole to every chunk. The call returns the sum of the chunks' results
     (None for a kernel without one); each row's values do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
@@ -240,7 +240,8 @@ class RowThreads:
 
         def chunk(t):
             a, b = cuts[t], cuts[t + 1]
-            return self.dispatcher(*(arg[a:b] if i in self.rows and arg.shape[0] == n else arg
+            return self.dispatcher(*(arg[a:b] if i in self.rows and arg is not None
+                                     and arg.shape[0] == n else arg
                                      for i, arg in enumerate(args)))
 
         others = [_row_pool().submit(chunk, t) for t in range(1, threads)]

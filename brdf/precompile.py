@@ -38,12 +38,14 @@ def _pairs(n=64):
 
 
 def _model_eval():
-    """Evaluation of parametric models and their physical checks (albedo, reciprocity)."""
+    """Evaluation of parametric models, their physical checks (albedo, reciprocity) and the
+    albedo's gradient (energy-constrained fits), a compilation of its own."""
     import brdf
     model = brdf.parse(_SPEC)
     wi, wo = _pairs()
     model.eval(wi, wo)
     brdf.check(model)
+    model.albedo_gradient(wi[:2])
 
 
 def _model_sampling():

@@ -1207,9 +1207,10 @@ def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
 
 @allocating_kernel
 def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err, dout):
-    """One term of a lobe's albedo into ``out`` and ``err`` (see ``_refine``), and with a
-    non-empty ``dout`` (P, C) its derivatives in the lobe's packed parameters (single-term,
-    non-delta lobes: see ``_gradient_over_panels``); returns the number of panels used."""
+    """One term of a lobe's albedo into ``out`` and ``err`` (see ``_refine``), and unless
+    ``dout`` is None its derivatives in the lobe's packed parameters into ``dout`` (P, C)
+    (single-term, non-delta lobes: see ``_gradient_over_panels``); returns the number of
+    panels used."""
     geo = np.empty((capacity, 3))
     val = np.empty((capacity, nch))
     perr = np.empty(capacity)
@@ -1224,7 +1225,7 @@ def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err,
         for c in range(nch):
             out[c] += val[j, c]
             err[c] += pe[j, c]
-    if dout.shape[0] > 0:
+    if dout is not None:
         _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, rules[0], rules[1], dout)
     return n
 
@@ -1235,10 +1236,11 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels
 
     ``panels[k]`` receives the number of cubature panels spent on direction k (each costs 49
     samples: 36 + 9 Gauss nodes and 4 corners), a measure of work that load does not skew.
-    With ``grad`` shaped (n, P, C), not (1, 0, C), it receives the derivatives in the packed
-    parameters ``p`` (models of single-term, non-delta lobes only: ``Model.albedo_gradient``).
+    Unless ``grad`` is None, it receives (n, P, C) the derivatives in the packed parameters
+    ``p`` (models of single-term, non-delta lobes only: ``Model.albedo_gradient``). None is a
+    type of its own, so numba leaves the derivatives out of that compilation (a first
+    ``check`` compiles the albedo without them, 1.3 s less).
     """
-    wanted = grad.shape[1] > 0
     for k in range(wi.shape[0]):
         ix, iy, iz = wi[k, 0], wi[k, 1], wi[k, 2]
         for l in range(kinds.shape[0]):
@@ -1248,7 +1250,11 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels
                 for c in range(nch):
                     out[k, c] += delta_reflectance(kind, q, nch, c, iz)
             elif iz > 0.0:
-                dq = grad[k, offs[l]:offs[l + 1]] if wanted else grad[0, :0]
                 for term in range(lobe_terms(kind)):
-                    panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
-                                              capacity, out[k], err[k], dq)
+                    if grad is None:
+                        panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
+                                                  capacity, out[k], err[k], None)
+                    else:
+                        panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
+                                                  capacity, out[k], err[k],
+                                                  grad[k, offs[l]:offs[l + 1]])

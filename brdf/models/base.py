@@ -628,7 +628,7 @@ class Model(Component):
         c = self._compiled() if nch is None else self.compile(nch)
         n = len(first)
         dealt = (np.zeros((n, c.nch)), np.zeros((n, c.nch)), np.zeros(n, dtype=np.int64))
-        grad = np.zeros((n, len(c.params), c.nch) if gradient else (1, 0, c.nch))
+        grad = np.zeros((n, len(c.params), c.nch)) if gradient else None
         _kernels.albedo_array(*c.args, np.ascontiguousarray(flat[first[deal]]), _KERNEL_RULES,
                               tol, max_panels, *dealt, grad)
         out, err, panels = (np.empty_like(a) for a in dealt)

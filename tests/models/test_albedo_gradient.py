@@ -67,3 +67,12 @@ def test_delta_and_multi_term_lobes_fall_back_to_differences(spec):
         model.albedo_gradient(WI)
     problem = Problem(_table(spec), spec)
     assert problem.albedo_jacobian(problem.x0, WI) is None
+
+
+def test_the_albedo_alone_is_compiled_without_its_derivatives():
+    # a check needs no derivatives: None (a type of its own) leaves them out of the kernel
+    from numba.core import types
+    from brdf.models import _kernels
+    a = brdf.parse("lambert + ggx(alpha=0.3)").albedo(WI)
+    assert a.shape == (len(WI), 1) and np.all(a > 0.0)
+    assert any(isinstance(sig[-1], types.NoneType) for sig in _kernels.albedo_array.signatures)
