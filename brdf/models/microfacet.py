@@ -19,7 +19,11 @@ from ._registry import FRESNEL, register
 from .base import Choice, Model, Nested, Param, Start
 from .fresnel import NONE, fresnel, fresnel_d
 
-GGX, BECKMANN = 0, 1
+#: The distributions, the first argument (``dist``) of the kernels below. GGX is None, which
+#: numba types apart and prunes tests against (it prunes no other constant's), so a kernel
+#: compiled for GGX drops every ``dist is GGX`` test with its Beckmann branch: a model without
+#: Beckmann lobes never compiles Beckmann's sampler (its slope search and erfinv).
+GGX, BECKMANN = None, 1
 SQRT_PI = math.sqrt(math.pi)
 ERF_EDGE = 1.0 - 2.0 ** -53
 ERF_EDGE_U = 2.0 ** -54  # the u with 2u - 1 = -ERF_EDGE
@@ -88,7 +92,7 @@ def ndf_d(dist, ax, ay, hx, hy, hz):
     hh = hx * hx + hy * hy + hz * hz
     sx = hx / ax
     sy = hy / ay
-    if dist == GGX:
+    if dist is GGX:
         t = sx * sx + sy * sy + hz * hz
         d = hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
         # eq. 85 differentiated: d ln D / d alpha_x = (4 s_x^2 / t - 1) / alpha_x
@@ -111,7 +115,7 @@ def smith_lambda_d(dist, ax, ay, x, y, z):
     its partial derivatives in alpha_x and alpha_y."""
     a2t2 = (ax * ax * x * x + ay * ay * y * y) / (z * z)  # alpha(phi)^2 tan^2(theta)
     z2 = z * z
-    if dist == GGX:
+    if dist is GGX:
         root = math.sqrt(1.0 + a2t2)
         # eq. 86 differentiated through a2t2: dLambda/da2t2 = 1 / (4 root)
         w = 0.5 / (root * z2)
@@ -140,7 +144,7 @@ def ggx_root(ax, ay, x, y, z):
 @kernel
 def g1(dist, ax, ay, x, y, z):
     """Smith masking G1 = 1 / (1 + Lambda) of a direction with z > 0 (Heitz 2014, eq. 43)."""
-    if dist == GGX:
+    if dist is GGX:
         return 2.0 * z / (z + ggx_root(ax, ay, x, y, z))
     return 1.0 / (1.0 + smith_lambda(dist, ax, ay, x, y, z))
 
@@ -154,7 +158,7 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
     1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
     """
-    if dist == GGX:
+    if dist is GGX:
         ri = ggx_root(ax, ay, ix, iy, iz)
         ro = ggx_root(ax, ay, ox, oy, oz)
         # d root / d alpha_x = alpha_x x^2 / root (the root of Heitz 2014, eq. 86)
@@ -329,7 +333,7 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
     vx *= inv
     vy *= inv
     vz = iz * inv
-    if dist == GGX:  # Heitz 2018, JCGT 7(4), listing 1
+    if dist is GGX:  # Heitz 2018, JCGT 7(4), listing 1
         lensq = vx * vx + vy * vy
         if lensq > 0.0:
             il = 1.0 / math.sqrt(lensq)
