@@ -29,7 +29,7 @@ KERNELS = {"models": ("the model kernels", ("brdf.models.", "brdf.sampling", "br
 #: other work, so wall times were 1.3-3 times these): models 59.5 s, fitting 30.1 s, tables
 #: 19.0 s, render 75.6 s. A first command compiles only the kernels it calls, for its model's
 #: families alone (see ``brdf.models._kernels.family_kinds``): a first ``check`` of
-#: ``lambert + ggx`` 11.5 s (2026-12-05), its first fit 22 s more.
+#: ``lambert + ggx`` 9.0 s (2026-12-05), its first fit 22 s more.
 COLD_SECONDS = {"models": 60, "fitting": 35, "tables": 20, "render": 80}
 
 

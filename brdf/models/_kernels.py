@@ -344,7 +344,7 @@ exec(compile(DISPATCH_SOURCE, __file__, "exec"), globals())
 # are :class:`FamilyKind`). numba compiles a kernel once per set of argument types, so once
 # per family set, and caches it on disk like any other signature; a dispatcher called with such
 # a kind compiles a copy of itself generated for those families only (:func:`specialising`):
-# the first check compiles in 15 s. Plain int64 kinds (the renderer's materials, calls from
+# the first check compiles in 9 s. Plain int64 kinds (the renderer's materials, calls from
 # Python, and every model once brdf.precompile has cached them) keep the dispatchers over
 # every family. A family's branch holds the same code either way; compiled with fast-math
 # contraction into other surroundings, a formula may round differently in the last bit
@@ -456,7 +456,7 @@ def family_kinds(kinds):
     (:func:`every_family_cached`), or within :func:`every_family`, these are the plain kinds,
     and every model shares those kernels. Otherwise their numba type holds the model's set of
     families, and the kernels compile for that set alone: a first ``check`` of ``lambert +
-    ggx`` on an empty cache compiles in 11.5 s of CPU instead of 31 s, each further family set
+    ggx`` on an empty cache compiles in 9 s of CPU instead of 31 s, each further family set
     in less (the families' own kernels are cached apart and shared).
     """
     kinds = np.ascontiguousarray(kinds, dtype=np.int64)
