@@ -208,8 +208,8 @@ def threaded_kernel(*rows):
     a :func:`parallel_kernel`'s speed without numba's parallel compile (its outlined loop body
     and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
     whose first axis is the loop's; one whose first axis has another length (an empty
-    placeholder), or None, goes whole to every chunk. The call returns the sum of the chunks' results
-    (None for a kernel without one); each row's values do not depend on the chunks."""
+    placeholder), or None, goes whole to every chunk. The call returns the sum of the chunks'
+    results (None for a kernel without one); each row's values do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
         dispatcher = _inputs_as_writable(quick_loading(numba.njit(
