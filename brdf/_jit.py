@@ -79,12 +79,11 @@ def _without_literals(dispatcher, keep=()):
     compiled again for each mix of constants and variables its callers passed. Constants gain
     nothing from it here, since LLVM inlines the callee and folds them all the same."""
     resolve = dispatcher.get_call_template
-    names = list(inspect.signature(dispatcher.py_func).parameters)
-    kept = [name in keep for name in names]
+    kept = {i for i, name in enumerate(inspect.signature(dispatcher.py_func).parameters)
+            if name in keep}
 
     def get_call_template(args, kws):
-        return resolve(tuple(a if i < len(kept) and kept[i] else types.unliteral(a)
-                             for i, a in enumerate(args)),
+        return resolve(tuple(a if i in kept else types.unliteral(a) for i, a in enumerate(args)),
                        {k: v if k in keep else types.unliteral(v) for k, v in kws.items()})
 
     dispatcher.get_call_template = get_call_template

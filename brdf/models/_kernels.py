@@ -1251,6 +1251,8 @@ def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels
                     out[k, c] += delta_reflectance(kind, q, nch, c, iz)
             elif iz > 0.0:
                 for term in range(lobe_terms(kind)):
+                    # two calls: one variable holding None or a slice would be typed Optional,
+                    # and numba would compile the derivatives into both
                     if grad is None:
                         panels[k] += _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol,
                                                   capacity, out[k], err[k], None)
