@@ -3,6 +3,15 @@
 Run: ``perf record -g python benchmarks/perf_map.py SCRIPT [ARGS ...]``, then
 ``perf report --no-children --sort symbol``.
 
+Within a kernel: ``perf report`` cannot disassemble just-in-time code, and a kernel inlines its
+callees, so one symbol may hold most of a profile. With ``PERF_MAP_OBJECTS=DIR`` set, the run
+also saves each library's object code in DIR (``N.o``, with ``index.tsv``: file, symbol, its
+offset in the file); then ``python benchmarks/perf_map.py --annotate perf.data DIR NAME``
+counts the samples at each instruction of the functions whose symbol contains NAME, prints
+the hottest 512-byte windows and writes ``NAME.annotated.s`` (samples, offset, instruction;
+``objdump``'s Intel syntax), where the calls, constants and square roots say which source
+lines a window holds.
+
 ``perf`` names just-in-time code from ``/tmp/perf-PID.map`` (lines ``START SIZE NAME``).
 numba writes no such map, and ``NUMBA_ENABLE_PROFILING``, which registers LLVM's listener
 instead, compiles everything anew and slowed renders fourfold in our runs. This script runs
@@ -67,6 +76,7 @@ def _lines(library, obj):
         except Exception:  # a library without object code of its own (nothing to map)
             return []
     symbols = _symbols(obj)
+    _save(obj, symbols)
     for offset, _, name in symbols:
         try:
             address = library.get_pointer_to_function(name)
@@ -76,6 +86,62 @@ def _lines(library, obj):
             base = address - offset  # one text section: every function moved together
             return [f"{base + o:x} {size:x} {n}" for o, size, n in symbols]
     return []
+
+
+def _save(obj, symbols):
+    """Keep ``obj`` and its functions' offsets in $PERF_MAP_OBJECTS, if set (see --annotate)."""
+    folder = os.environ.get("PERF_MAP_OBJECTS")
+    if not folder or not symbols:
+        return
+    os.makedirs(folder, exist_ok=True)
+    name = f"{len([f for f in os.listdir(folder) if f.endswith('.o')])}.o"
+    with open(os.path.join(folder, name), "wb") as f:
+        f.write(obj)
+    with open(os.path.join(folder, "index.tsv"), "a") as f:
+        f.writelines(f"{name}\t{sym}\t{offset:x}\n" for offset, _, sym in symbols)
+
+
+def annotate(data, folder, name, window=512):
+    """Samples of ``perf record``'s ``data`` at each instruction of the functions whose symbol
+    contains ``name``, from the object code saved in ``folder`` (see the module's notes)."""
+    # perf resolves symbols only with the address asked for too: lines "ADDRESS SYMBOL+0xOFF"
+    out = subprocess.run(["perf", "script", "-i", data, "-F", "ip,sym,symoff"],
+                         capture_output=True, text=True, check=True).stdout
+    hits = {}
+    for line in out.splitlines():
+        sym, _, off = (line.split() or [""])[-1].rpartition("+0x")
+        if name in sym:
+            key = (sym, int(off, 16))
+            hits[key] = hits.get(key, 0) + 1
+    with open(os.path.join(folder, "index.tsv")) as f:
+        rows = [line.rstrip("\n").split("\t") for line in f]
+    done = set()
+    for obj, sym, offset in rows:
+        if name not in sym or sym in done:  # a symbol in several libraries: the first's code
+            continue
+        done.add(sym)
+        start = int(offset, 16)
+        asm = subprocess.run(["objdump", "-d", "--no-show-raw-insn", "-M", "intel",
+                              f"--disassemble={sym}", os.path.join(folder, obj)],
+                             capture_output=True, text=True, check=True).stdout
+        listing, windows = [], {}
+        for line in asm.splitlines():
+            head, sep, instruction = line.partition(":\t")
+            if not sep or not head.strip().isalnum():
+                continue
+            at = int(head, 16) - start
+            n = hits.get((sym, at), 0)
+            windows[at // window] = windows.get(at // window, 0) + n
+            listing.append(f"{n:6d} {at:6x}: {instruction.split('<')[0].rstrip()}")
+        total = sum(windows.values())
+        print(f"{sym[:80]}: {total} samples")
+        for w, n in sorted(windows.items(), key=lambda kv: -kv[1])[:12]:
+            if n:
+                print(f"  {w * window:6x}-{(w + 1) * window:6x} {n:6d} {100.0 * n / total:5.1f} %")
+        path = f"{name}.annotated.s"
+        with open(path, "a" if len(done) > 1 else "w") as f:
+            f.write(f"# {sym}\n" + "\n".join(listing) + "\n")
+        print(f"  listing in {path}")
 
 
 def write_map():
@@ -92,6 +158,11 @@ def write_map():
 def main():
     if len(sys.argv) < 2:
         raise SystemExit(__doc__)
+    if sys.argv[1] == "--annotate":
+        if len(sys.argv) != 5:
+            raise SystemExit("usage: perf_map.py --annotate PERF_DATA OBJECT_DIR NAME")
+        annotate(*sys.argv[2:])
+        return
     _recording()
     atexit.register(write_map)
     script = sys.argv[1]
