@@ -143,6 +143,17 @@ def kernel(fn):
         fn, cache=True, fastmath=FASTMATH, error_model="numpy", _nrt=False))))
 
 
+def nogil_kernel(fn):
+    """Compile an :func:`allocating_kernel` that runs without the GIL, for Python threads
+    that call it side by side (:func:`in_threads`): a parallel loop's speed without a
+    :func:`parallel_kernel`'s outlined loop, which links everything the loop calls once more
+    and optimises it anew (the renderer's ``render_pass``: 29 s of the render group's 89 s of
+    compile CPU on an empty cache; :func:`brdf.render._integrator.trace_tiles`, which
+    replaced it, 8 s)."""
+    return _without_literals(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)))
+
+
 def allocating_kernel(fn):
     """Compile a serial kernel that allocates work arrays (reference counted, as numba's
     default; otherwise as :func:`kernel`)."""
@@ -249,6 +260,18 @@ class RowThreads:
 
 
 _ROW_POOL = []
+
+
+def in_threads(count, work):
+    """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` of the pool
+    :class:`RowThreads` uses (``NUMBA_NUM_THREADS - 1`` threads), and return when every call
+    has; an exception raised in any of them is raised here."""
+    others = [_row_pool().submit(work) for _ in range(count - 1)]
+    try:
+        work()
+    finally:
+        for f in others:
+            f.result()
 
 
 def _row_pool():

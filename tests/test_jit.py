@@ -6,8 +6,10 @@ toy kernels hold the three ways they arose (literal constants, read-only arrays,
 unsigned counter) to one specialisation each.
 """
 
+import itertools
 import subprocess
 import sys
+import time
 
 import numba
 import numpy as np
@@ -15,7 +17,8 @@ import pytest
 from numba import prange, typeof
 from numba.core import types
 
-from brdf._jit import (allocating_kernel, fetch_add, inline_kernel, kernel, parallel_kernel,
+from brdf._jit import (allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
+                       nogil_kernel, parallel_kernel,
                        threaded_kernel)
 
 
@@ -159,6 +162,52 @@ def test_fetch_add_hands_each_item_to_exactly_one_thread():
     assert (taken == 1).all()
     assert queue[0] == taken.shape[0] + 8  # each worker's last turn finds the queue empty
 
+
+
+@nogil_kernel
+def _take_items(queue, taken):
+    """Take items off ``queue`` until none is left, counting in ``taken`` how often each was
+    taken."""
+    while True:
+        k = fetch_add(queue, 1)
+        if k >= taken.shape[0]:
+            return
+        taken[k] += 1
+
+
+@nogil_kernel
+def _wait_for_the_other(flag, turns):
+    """Say it is running (flag 1), then wait up to ``turns`` checks for another thread to
+    answer (flag 2): whether it did. The flag is read atomically, so no check is skipped."""
+    fetch_add(flag, 1)
+    for _ in range(turns):
+        if fetch_add(flag, 0) == 2:
+            return True
+    return False
+
+
+def test_threads_share_a_queue_of_items():
+    queue, taken = np.zeros(1, np.int64), np.zeros(20_000, np.int64)
+    in_threads(3, lambda: _take_items(queue, taken))
+    assert (taken == 1).all()
+    assert queue[0] == taken.shape[0] + 3  # each thread's last turn finds the queue empty
+
+
+def test_a_nogil_kernel_lets_another_thread_run_meanwhile():
+    # one thread waits inside the kernel for the other to answer from Python: with the GIL
+    # held by the kernel, the answer could only come after it gave up
+    flag, roles, answered = np.zeros(1, np.int64), itertools.count(), []
+
+    def work():
+        if next(roles) == 0:
+            answered.append(_wait_for_the_other(flag, 10 ** 9))
+            return
+        while flag[0] < 1:
+            time.sleep(1e-4)
+        flag[0] = 2
+
+    in_threads(2, work)
+    assert answered == [True]
 
 
 _VIEWS = """

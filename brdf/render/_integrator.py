@@ -44,9 +44,8 @@ import math
 from collections import namedtuple
 
 import numpy as np
-from numba import prange
 
-from .._jit import allocating_kernel, fetch_add, inline_kernel, kernel, parallel_kernel
+from .._jit import allocating_kernel, fetch_add, in_threads, inline_kernel, kernel, nogil_kernel
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
@@ -667,13 +666,14 @@ def _shade_target(opts, mats, slots, p):
                     df[s, j, c, k] = d * w
 
 
-@kernel
+@inline_kernel
 def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
     """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) of ``tile`` into the running
     ``sums`` (see :func:`render_pass`): for each, the radiance along its camera ray, and with
     opts[LAYERS] the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading
     normal; the derivative images into ``grad``. ``p`` is the packet's work space
-    (:func:`_packet_space`)."""
+    (:func:`_packet_space`). Inlined into :func:`trace_tiles`' loop: called there, the white
+    furnace rendered about 15 % slower (one thread)."""
     x0, y0, x1, y1 = tile
     total = (x1 - x0) * (y1 - y0) * (s1 - s0)
     fl, il, sh = p.fl, p.il, p.sh
@@ -711,35 +711,48 @@ def _packet_space(nparams, nlobes, nd):
                   np.zeros((nparams, 1, 3)), np.zeros(nparams))
 
 
-@parallel_kernel
+@nogil_kernel
+def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
+                nlobes):
+    """Trace tiles of opts[TILE]^2 pixels (:func:`trace_tile`, samples s0 .. s1 - 1), each
+    taken from the queue the threads share (``queue[0]``, the next tile's number, row-major
+    over the image) as the last is done, until none is left. Each tile gets a new packet
+    work space (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters
+    and ``nlobes`` lobes), so that nothing a thread traced before steers it."""
+    w, h, tile = opts[W], opts[H], opts[TILE]
+    nd = 0
+    if grad is not None:
+        nd = grad.slots.shape[0]
+    tx_n = (w + tile - 1) // tile
+    ntiles = tx_n * ((h + tile - 1) // tile)
+    while True:
+        k = fetch_add(queue, 1)
+        if k >= ntiles:
+            return
+        x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
+        trace_tile(cam, opts, geo, mats, lights, seed,
+                   (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums, grad,
+                   _packet_space(nparams, nlobes, nd))
+
+
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
     """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
     ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
     (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
     its own: numba prunes the derivatives' passes from that compilation, which cost a third
-    more of the renderer's compile time). The threads take tiles of opts[TILE]^2 pixels from a shared queue, each traced
-    by :func:`trace_tile` in a packet of paths; a tile's pixels are its own, so the sums do not
-    depend on who traced it."""
-    w, h, tile = opts[W], opts[H], opts[TILE]
-    tx_n = (w + tile - 1) // tile
-    ntiles = tx_n * ((h + tile - 1) // tile)
+    more of the renderer's compile time). opts[THREADS] threads (:func:`brdf._jit.in_threads`)
+    run :func:`trace_tiles`, taking tiles from one queue; a tile's pixels are its own, so the sums do not depend on who traced it. Each
+    thread takes the next tile as it finishes one: equal shares would wait on the slower core
+    of a shared host, which can run 5-18 % slower than the other for seconds at a time
+    (measured per thread on the Cornell box)."""
+    tile = int(opts[TILE])
+    ntiles = -(-int(opts[W]) // tile) * -(-int(opts[H]) // tile)
     nparams = max(mats.params.shape[0], 1)
-    nlobes = 1
-    for m in range(mats.mint.shape[0]):
-        nlobes = max(nlobes, mats.mint[m, K1] - mats.mint[m, K0])
-    nd = 0
-    if grad is not None:
-        nd = grad.slots.shape[0]
-    # each thread takes the next tile as it finishes one: numba's parallel loop would split
-    # the tiles into equal shares, and on a shared host one core can run 5-18 % slower than
-    # the other for seconds at a time (measured per thread on the Cornell box)
+    nlobes = max(1, int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1)))
     queue = np.zeros(1, np.int64)
-    for _ in prange(opts[THREADS]):
-        while True:
-            k = fetch_add(queue, 1)
-            if k >= ntiles:
-                break
-            x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
-            trace_tile(cam, opts, geo, mats, lights, seed,
-                       (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums, grad,
-                       _packet_space(nparams, nlobes, nd))
+
+    def work():
+        trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
+                    nlobes)
+
+    in_threads(max(1, min(int(opts[THREADS]), ntiles)), work)
