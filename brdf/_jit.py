@@ -15,6 +15,7 @@ numba internals, so ``pyproject.toml`` pins numba to the minor release
 
 import functools
 import inspect
+import threading
 
 import llvmlite.binding as ll
 import numba
@@ -263,15 +264,28 @@ _ROW_POOL = []
 
 
 def in_threads(count, work):
-    """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` of the pool
-    :class:`RowThreads` uses (``NUMBA_NUM_THREADS - 1`` threads), and return when every call
-    has; an exception raised in any of them is raised here."""
-    others = [_row_pool().submit(work) for _ in range(count - 1)]
+    """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` started for
+    the call, and return when every call has; an exception raised in any of them is raised
+    here. Not :class:`RowThreads`' pool: another thread's kernels may be waiting on it
+    meanwhile (the explorer's sliders, while a render refines its view in the background)."""
+    errors = []
+
+    def run():
+        try:
+            work()
+        except BaseException as exc:  # raised again in the calling thread
+            errors.append(exc)
+
+    others = [threading.Thread(target=run, daemon=True) for _ in range(count - 1)]
+    for t in others:
+        t.start()
     try:
         work()
     finally:
-        for f in others:
-            f.result()
+        for t in others:
+            t.join()
+    if errors:
+        raise errors[0]
 
 
 def _row_pool():

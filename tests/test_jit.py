@@ -193,6 +193,17 @@ def test_threads_share_a_queue_of_items():
     assert queue[0] == taken.shape[0] + 3  # each thread's last turn finds the queue empty
 
 
+def test_in_threads_raises_what_a_thread_raised():
+    calls = itertools.count()
+
+    def work():
+        if next(calls) == 1:
+            raise ValueError("one thread failed")
+
+    with pytest.raises(ValueError, match="one thread failed"):
+        in_threads(3, work)
+
+
 def test_a_nogil_kernel_lets_another_thread_run_meanwhile():
     # one thread waits inside the kernel for the other to answer from Python: with the GIL
     # held by the kernel, the answer could only come after it gave up
