@@ -741,14 +741,14 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
     (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
     its own: numba prunes the derivatives' passes from that compilation, which cost a third
     more of the renderer's compile time). opts[THREADS] threads (:func:`brdf._jit.in_threads`)
-    run :func:`trace_tiles`, taking tiles from one queue; a tile's pixels are its own, so the sums do not depend on who traced it. Each
-    thread takes the next tile as it finishes one: equal shares would wait on the slower core
-    of a shared host, which can run 5-18 % slower than the other for seconds at a time
-    (measured per thread on the Cornell box)."""
+    run :func:`trace_tiles`, taking tiles from one queue; a tile's pixels are its own, so the
+    sums do not depend on who traced it. Each thread takes the next tile as it finishes one:
+    equal shares would wait on the slower core of a shared host, which can run 5-18 % slower
+    than the other for seconds at a time (measured per thread on the Cornell box)."""
     tile = int(opts[TILE])
     ntiles = -(-int(opts[W]) // tile) * -(-int(opts[H]) // tile)
     nparams = max(mats.params.shape[0], 1)
-    nlobes = max(1, int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1)))
+    nlobes = int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1))
     queue = np.zeros(1, np.int64)
 
     def work():
