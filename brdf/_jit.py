@@ -263,6 +263,15 @@ class RowThreads:
 _ROW_POOL = []
 
 
+def _row_pool():
+    """The threads :class:`RowThreads` hands chunks to (made on first use)."""
+    if not _ROW_POOL:
+        from concurrent.futures import ThreadPoolExecutor
+        _ROW_POOL.append(ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1),
+                                            thread_name_prefix="brdf-rows"))
+    return _ROW_POOL[0]
+
+
 def in_threads(count, work):
     """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` started for
     the call, and return when every call has; an exception raised in any of them is raised
@@ -286,15 +295,6 @@ def in_threads(count, work):
             t.join()
     if errors:
         raise errors[0]
-
-
-def _row_pool():
-    """The threads :class:`RowThreads` hands chunks to (made on first use)."""
-    if not _ROW_POOL:
-        from concurrent.futures import ThreadPoolExecutor
-        _ROW_POOL.append(ThreadPoolExecutor(max(1, numba.config.NUMBA_NUM_THREADS - 1),
-                                            thread_name_prefix="brdf-rows"))
-    return _ROW_POOL[0]
 
 
 @intrinsic
