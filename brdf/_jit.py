@@ -19,6 +19,7 @@ import threading
 
 import llvmlite.binding as ll
 import numba
+import numpy as np
 from numba.core import cgutils, codegen, datamodel, types
 from numba.extending import intrinsic
 
@@ -146,13 +147,14 @@ def kernel(fn):
 
 def nogil_kernel(fn):
     """Compile an :func:`allocating_kernel` that runs without the GIL, for Python threads
-    that call it side by side (:func:`in_threads`): a parallel loop's speed without a
-    :func:`parallel_kernel`'s outlined loop, which links everything the loop calls once more
-    and optimises it anew (the renderer's ``render_pass``: 29 s of the render group's 89 s of
-    compile CPU on an empty cache; :func:`brdf.render._integrator.trace_tiles`, which
-    replaced it, 8 s)."""
-    return _without_literals(quick_loading(numba.njit(
-        fn, cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True)))
+    that call it side by side (:func:`in_threads`, :func:`share_queue`): a parallel loop's
+    speed without a numba ``prange`` loop's outlined body, which links everything the loop
+    calls once more and optimises it anew (the renderer's ``render_pass``: 29 s of the render
+    group's 89 s of compile CPU on an empty cache; :func:`brdf.render._integrator.trace_tiles`,
+    which replaced it, 8 s). Read-only arrays are typed as writable
+    (:func:`_inputs_as_writable`)."""
+    return _inputs_as_writable(_without_literals(quick_loading(numba.njit(
+        fn, cache=True, fastmath=FASTMATH, error_model="numpy", nogil=True))))
 
 
 def allocating_kernel(fn):
@@ -206,17 +208,11 @@ def _always_inlined(dispatcher):
     return dispatcher
 
 
-def parallel_kernel(fn):
-    """Compile an array kernel whose ``prange`` loops run on all cores."""
-    return _inputs_as_writable(quick_loading(numba.njit(
-        fn, cache=True, fastmath=FASTMATH, error_model="numpy", parallel=True)))
-
-
 def threaded_kernel(*rows):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
     call it on equal chunks of those rows at once, one per thread numba would use
     (:func:`numba.get_num_threads`, which :func:`brdf._threads.serial_below` lowers to one):
-    a :func:`parallel_kernel`'s speed without numba's parallel compile (its outlined loop body
+    a ``prange`` loop's speed without numba's parallel compile (its outlined loop body
     and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
     whose first axis is the loop's; one whose first axis has another length (an empty
     placeholder), or None, goes whole to every chunk. The call returns the sum of the chunks'
@@ -272,11 +268,16 @@ def _row_pool():
     return _ROW_POOL[0]
 
 
-def in_threads(count, work):
-    """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` started for
-    the call, and return when every call has; an exception raised in any of them is raised
-    here. Not :class:`RowThreads`' pool: another thread's kernels may be waiting on it
-    meanwhile (the explorer's sliders, while a render refines its view in the background)."""
+def in_threads(count, work, short=False):
+    """Call ``work()`` in ``count`` threads at once, this one and ``count - 1`` others, and
+    return when every call has; an exception raised in any of them is raised here.
+
+    The others are started for the call, unless the calls are ``short`` (a fit's loss pass,
+    which a fit makes thousands of times): then they are :class:`RowThreads`' pool's. A long
+    call (a render) starts its own, so as not to keep another thread's kernels waiting on the
+    pool meanwhile (the explorer's sliders, while a render refines its view in the
+    background). ``work`` must then take its share from a queue (:func:`fetch_add`), since a
+    call the pool has not started when this thread's is done is dropped."""
     errors = []
 
     def run():
@@ -285,16 +286,36 @@ def in_threads(count, work):
         except BaseException as exc:  # raised again in the calling thread
             errors.append(exc)
 
-    others = [threading.Thread(target=run, daemon=True) for _ in range(count - 1)]
-    for t in others:
-        t.start()
-    try:
-        work()
-    finally:
+    if short:
+        others = [_row_pool().submit(run) for _ in range(count - 1)]
+        try:
+            work()
+        finally:
+            for f in others:
+                if not f.cancel():  # started: wait for its share
+                    f.result()
+    else:
+        others = [threading.Thread(target=run, daemon=True) for _ in range(count - 1)]
         for t in others:
-            t.join()
+            t.start()
+        try:
+            work()
+        finally:
+            for t in others:
+                t.join()
     if errors:
         raise errors[0]
+
+
+def share_queue(kernel, items, *args):
+    """Call ``kernel(*args, queue)`` in ``min(items, numba.get_num_threads())`` threads at
+    once (:func:`in_threads`, ``short``): ``queue`` is a new counter (an int64 array of one)
+    from which the calls take the numbers of items 0 .. ``items`` - 1 with :func:`fetch_add`
+    until none is left. For a :func:`nogil_kernel` whose items' results do not depend on who
+    computed them (the fit's loss passes, whose blocks' sums are added up afterwards)."""
+    queue = np.zeros(1, np.int64)
+    in_threads(max(1, min(items, numba.get_num_threads())), lambda: kernel(*args, queue),
+               short=True)
 
 
 @intrinsic

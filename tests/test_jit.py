@@ -6,20 +6,21 @@ toy kernels hold the three ways they arose (literal constants, read-only arrays,
 unsigned counter) to one specialisation each.
 """
 
+import contextlib
 import itertools
 import subprocess
 import sys
+import threading
 import time
 
 import numba
 import numpy as np
 import pytest
-from numba import prange, typeof
+from numba import typeof
 from numba.core import types
 
 from brdf._jit import (allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
-                       nogil_kernel, parallel_kernel,
-                       threaded_kernel)
+                       nogil_kernel, share_queue, threaded_kernel)
 
 
 @kernel
@@ -37,9 +38,9 @@ def _with_variables(a, n, k):
     return _scaled(a, n, k)
 
 
-@parallel_kernel
+@nogil_kernel
 def _doubled(a, out):
-    for k in prange(a.shape[0]):
+    for k in range(a.shape[0]):
         out[k] = 2.0 * a[k]
 
 
@@ -147,25 +148,8 @@ def test_a_kernel_cannot_allocate_but_an_allocating_kernel_can():
     assert a[0] == 0.0 and b.sum() == 10.0
 
 
-def test_fetch_add_hands_each_item_to_exactly_one_thread():
-    @numba.njit(parallel=True)
-    def take(queue, taken, workers):
-        for _ in prange(workers):
-            while True:
-                k = fetch_add(queue, 1)
-                if k >= taken.shape[0]:
-                    break
-                taken[k] += 1
-
-    queue, taken = np.zeros(1, np.int64), np.zeros(20_000, np.int64)
-    take(queue, taken, 8)
-    assert (taken == 1).all()
-    assert queue[0] == taken.shape[0] + 8  # each worker's last turn finds the queue empty
-
-
-
 @nogil_kernel
-def _take_items(queue, taken):
+def _take_items(taken, queue):
     """Take items off ``queue`` until none is left, counting in ``taken`` how often each was
     taken."""
     while True:
@@ -188,20 +172,59 @@ def _wait_for_the_other(flag, turns):
 
 def test_threads_share_a_queue_of_items():
     queue, taken = np.zeros(1, np.int64), np.zeros(20_000, np.int64)
-    in_threads(3, lambda: _take_items(queue, taken))
+    in_threads(3, lambda: _take_items(taken, queue))
     assert (taken == 1).all()
     assert queue[0] == taken.shape[0] + 3  # each thread's last turn finds the queue empty
 
 
-def test_in_threads_raises_what_a_thread_raised():
-    calls = itertools.count()
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_shared_queue_hands_each_item_to_exactly_one_call(threads):
+    taken = np.zeros(20_000, np.int64)
+    with numba_threads(threads):
+        share_queue(_take_items, taken.shape[0], taken)
+    assert (taken == 1).all()
+
+
+def test_a_shared_queue_runs_from_a_pool_thread_too():
+    # a call from the pool's own thread (one thread on two cores) cannot wait on that thread:
+    # its share, never started, is dropped, and this thread takes every item
+    from concurrent.futures import ThreadPoolExecutor
+    taken = np.zeros(1000, np.int64)
+
+    def from_pool():
+        with numba_threads(2):
+            share_queue(_take_items, taken.shape[0], taken)
+
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(from_pool).result(timeout=60)
+    assert (taken == 1).all()
+
+
+@contextlib.contextmanager
+def numba_threads(n):
+    """numba's thread count for this thread while in the block (at most what numba has)."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
+
+
+@pytest.mark.parametrize("short", [False, True])
+def test_in_threads_raises_what_a_thread_raised(short):
+    calls, lock, failing = itertools.count(), threading.Lock(), threading.Event()
 
     def work():
-        if next(calls) == 1:
+        with lock:
+            turn = next(calls)
+        if turn == 1:
+            failing.set()
             raise ValueError("one thread failed")
+        assert failing.wait(30)  # a short call not started when this one ends is dropped
 
     with pytest.raises(ValueError, match="one thread failed"):
-        in_threads(3, work)
+        in_threads(2, work, short=short)
 
 
 def test_a_nogil_kernel_lets_another_thread_run_meanwhile():

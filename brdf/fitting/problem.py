@@ -21,9 +21,8 @@ import re
 from dataclasses import dataclass
 
 import numpy as np
-from numba import prange
 
-from .._jit import inline_kernel, kernel, parallel_kernel, sparse_product
+from .._jit import fetch_add, inline_kernel, kernel, nogil_kernel, share_queue, sparse_product
 from ..errors import InputError, ParameterError
 from ..models import _kinds as K
 from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
@@ -549,12 +548,21 @@ class Problem:
         return sums.sum(axis=0) / terms.norm
 
 
-@parallel_kernel
 def _loss_sums(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, weight, offset,
                block, out):
     """``out[b, j, c]`` = sum over the samples k of block ``b`` of
     weight_k (g(scale_kc f_j(wi_k, wo_k)_c) - target_kc)^2, for each parameter row ``j``; g is
     the identity when ``offset`` is 0, else log(offset + .) (see brdf.fitting.losses.Terms).
+    The blocks are shared out to threads (:func:`_sum_loss_blocks`)."""
+    share_queue(_sum_loss_blocks, out.shape[0], kinds, offs, params, lobes, lobe, nch, wi, wo,
+                scale, target, weight, offset, block, out)
+
+
+@nogil_kernel
+def _sum_loss_blocks(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, weight,
+                     offset, block, out, queue):
+    """:func:`_loss_sums` of the blocks this thread takes from the queue (``queue[0]``, the next
+    block's number).
 
     With three channels, no logarithm and Lambertian lobes besides the one lobe ``lobe`` (>= 0),
     each row's f is folded into its terms as it comes (:func:`_fold_loss_blocks`). Otherwise a
@@ -564,16 +572,17 @@ def _loss_sums(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, wei
     """
     n = wi.shape[0]
     nl = kinds.shape[0]
-    if nch == 3 and lobe >= 0 and offset == 0.0:
-        for b in prange(out.shape[0]):
-            lo = b * block
-            hi = min(n, lo + block)
-            _fold_loss_blocks(kinds, offs, params, lobe, wi[lo:hi], wo[lo:hi], scale[lo:hi],
-                              target[lo:hi], weight[lo:hi], out[b])
-        return
-    for b in prange(out.shape[0]):
+    fold = nch == 3 and lobe >= 0 and offset == 0.0
+    while True:
+        b = fetch_add(queue, 1)
+        if b >= out.shape[0]:
+            return
         lo = b * block
         hi = min(n, lo + block)
+        if fold:
+            _fold_loss_blocks(kinds, offs, params, lobe, wi[lo:hi], wo[lo:hi], scale[lo:hi],
+                              target[lo:hi], weight[lo:hi], out[b])
+            continue
         base = np.zeros((nl, hi - lo, nch))
         f = np.empty((hi - lo, nch))
         for j in range(params.shape[0]):
@@ -607,18 +616,26 @@ def _block_score(f, lo, hi, c, scale, target, weight, offset):
     return acc
 
 
-@parallel_kernel
 def _score_sums(f, scale, target, weight, offset, block, out):
-    """``out[b, c]``: the terms' sum over block b of model values ``f`` (n, C) computed before."""
+    """``out[b, c]``: the terms' sum over block b of model values ``f`` (n, C) computed before
+    (the blocks shared out to threads, :func:`_sum_score_blocks`)."""
+    share_queue(_sum_score_blocks, out.shape[0], f, scale, target, weight, offset, block, out)
+
+
+@nogil_kernel
+def _sum_score_blocks(f, scale, target, weight, offset, block, out, queue):
+    """:func:`_score_sums` of the blocks this thread takes from the queue (``queue[0]``)."""
     n = f.shape[0]
-    for b in prange(out.shape[0]):
+    while True:
+        b = fetch_add(queue, 1)
+        if b >= out.shape[0]:
+            return
         lo = b * block
         hi = min(n, lo + block)
         for c in range(f.shape[1]):
             out[b, c] = _block_score(f[lo:hi], lo, hi, c, scale, target, weight, offset)
 
 
-@parallel_kernel
 def _loss_gradient_sums(kinds, offs, params, needed, chan, lobe, nch, wi, wo, scale, target,
                         weight, offset, block, loss, grad):
     """For the one packed parameter vector ``params``: ``loss[b, c]`` as in :func:`_loss_sums`,
@@ -626,21 +643,35 @@ def _loss_gradient_sums(kinds, offs, params, needed, chan, lobe, nch, wi, wo, sc
     ``needed[j]`` (``chan[j]``: the one channel that params[j] acts on, or -1; ``lobe``: see
     :func:`_group_loss_gradient`).
 
-    The blocks run in groups of :data:`GRADIENT_GROUP`, each group with one set of work arrays
-    (see :func:`_group_loss_gradient`). The sums of a block do not depend on its group.
+    The blocks run in groups of :data:`GRADIENT_GROUP`, shared out to threads
+    (:func:`_sum_loss_gradient_groups`). The sums of a block do not depend on its group.
     """
+    groups = -(-loss.shape[0] // GRADIENT_GROUP)
+    share_queue(_sum_loss_gradient_groups, groups, kinds, offs, params, needed, chan, lobe, nch,
+                wi, wo, scale, target, weight, offset, block, loss, grad)
+
+
+@nogil_kernel
+def _sum_loss_gradient_groups(kinds, offs, params, needed, chan, lobe, nch, wi, wo, scale,
+                              target, weight, offset, block, loss, grad, queue):
+    """:func:`_loss_gradient_sums` of the groups of blocks this thread takes from the queue
+    (``queue[0]``, the next group's number), with one set of work arrays for all of them (see
+    :func:`_group_loss_gradient`)."""
     n = wi.shape[0]
     npar = params.shape[0]
     blocks = loss.shape[0]
     fast = nch == 3 and npar <= SLOTS
     rows = 0 if fast else block  # the other channel counts' work arrays (on the heap)
-    for g in prange((blocks + GRADIENT_GROUP - 1) // GRADIENT_GROUP):
+    fs = np.empty((rows, nch))
+    terms = np.empty((rows, nch))
+    ds = np.zeros((npar, rows, nch))
+    while True:
+        g = fetch_add(queue, 1)
         b0 = g * GRADIENT_GROUP
+        if b0 >= blocks:
+            return
         b1 = min(blocks, b0 + GRADIENT_GROUP)
         lo, hi = b0 * block, min(n, b1 * block)
-        fs = np.empty((rows, nch))
-        terms = np.empty((rows, nch))
-        ds = np.zeros((npar, rows, nch))
         _group_loss_gradient(kinds, offs, params, needed, chan, lobe, nch, wi[lo:hi],
                              wo[lo:hi], scale[lo:hi], target[lo:hi], weight[lo:hi], offset,
                              block, loss[b0:b1], grad[b0:b1], fs, terms, ds)

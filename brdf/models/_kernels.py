@@ -41,7 +41,6 @@ import os
 
 import numpy as np
 from llvmlite import ir
-from numba import prange
 from numba.core import cgutils, types
 from numba.core.datamodel.models import IntegerModel
 from numba.core.datamodel.registry import register_default
@@ -50,7 +49,7 @@ from numba.core.typeconv import Conversion
 from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic
 
-from .._jit import allocating_kernel, inline_kernel, kernel, parallel_kernel, threaded_kernel
+from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
 from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
@@ -932,11 +931,13 @@ def eval_array(kinds, offs, p, nch, wi, wo, out, low, high):
     return bad
 
 
-@parallel_kernel
+@kernel
 def grad_array(kinds, offs, p, nch, wi, wo, out, d):
     """Add f(wi, wo) to ``out`` (n, C) and set ``d[j, k, c]`` (P, n, C), zeroed by the caller, to
-    df_c / dp[j] at pair k for every packed parameter p[j] (0 for choice codes)."""
-    for k in prange(wi.shape[0]):
+    df_c / dp[j] at pair k for every packed parameter p[j] (0 for choice codes), one pair at a
+    time on one thread: the tests' oracle for the fit's gradient pass, which uses the same
+    per-family kernels."""
+    for k in range(wi.shape[0]):
         ix, iy, iz, ox, oy, oz = wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2]
         for l in range(kinds.shape[0]):
             lobe_derivatives(kinds[l], p[offs[l]:offs[l + 1]], nch, ix, iy, iz, ox, oy, oz, out,

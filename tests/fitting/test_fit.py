@@ -160,6 +160,39 @@ def test_loss_pass_agrees_with_values_scored_apart(rgb_table, spec, loss):
     assert np.array_equal(again, losses_)
 
 
+@pytest.mark.parametrize("spec,loss", [(SPECS[0], "cosine-l2"), (SPECS[0], "log"),
+                                       (SPECS[0] + " + beckmann", "relative-l2")])
+def test_passes_over_many_blocks_give_the_same_bytes_on_one_thread_and_on_two(spec, loss):
+    # 20,000 samples: 10 blocks of the loss, 3 groups of blocks of the gradient pass, shared
+    # out to the threads from a queue (the grid tables above fill one block)
+    import numba
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here")
+    rng = np.random.default_rng(11)
+    wi, wo = (brdf.geometry.directions_from_degrees(rng.uniform(0, 80, 20_000),
+                                                    rng.uniform(0, 360, 20_000))
+              for _ in range(2))
+    values = brdf.parse(RGB_TRUTH).eval(wi, wo) * rng.uniform(0.9, 1.1, (20_000, 3))
+    p = Problem(brdf.Table(wi, wo, values), spec, loss=loss)
+    X = np.array([p.x0 + 0.2 * (x - p.x0) for x in p.random_x(rng, 3)])
+    metric = losses.terms("l2", p.samples, len(p.free))
+
+    def passes():
+        return (p.channel_losses(X), *p.loss_and_gradient(X[1]),
+                p.score(p.model_values(X[2]), metric))
+
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(2)
+        two = passes()
+        numba.set_num_threads(1)
+        one = passes()
+    finally:
+        numba.set_num_threads(threads)
+    for a, b in zip(one, two):
+        assert np.array_equal(a, b)
+
+
 def test_difference_rows_stay_inside_the_bounds(rgb_table):
     p = Problem(rgb_table, "lambert(albedo=0) + ggx(alpha=0.3)")  # albedo at its lower bound
     rows, width = p.difference_rows(p.x0)
