@@ -666,37 +666,6 @@ def _shade_target(opts, mats, slots, p):
                     df[s, j, c, k] = d * w
 
 
-@inline_kernel
-def trace_tile(cam, opts, geo, mats, lights, seed, tile, s0, s1, sums, grad, p):
-    """Samples s0 .. s1 - 1 of the pixels [x0, x1) x [y0, y1) of ``tile`` into the running
-    ``sums`` (see :func:`render_pass`): for each, the radiance along its camera ray, and with
-    opts[LAYERS] the first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading
-    normal; the derivative images into ``grad``. ``p`` is the packet's work space
-    (:func:`_packet_space`). Inlined into :func:`trace_tiles`' loop: called there, the white
-    furnace rendered about 15 % slower (one thread)."""
-    x0, y0, x1, y1 = tile
-    total = (x1 - x0) * (y1 - y0) * (s1 - s0)
-    fl, il, sh = p.fl, p.il, p.sh
-    start = 0
-    while True:
-        start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
-        if busy == 0:
-            return
-        trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False, PACKET)
-        _draw(fl, p.state)
-        shading, shadows = _vertices(opts, geo, mats, lights, p)
-        if grad is not None:
-            _emitted(p)
-        if shadows > 0:
-            # whole SIMD registers of lanes (eight numbers: AVX-512)
-            trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH], il[BLOCKER],
-                         True, min(PACKET, (shadows + 7) // 8 * 8))
-        if shading > 0:
-            _shade(opts, mats, p)
-            if grad is not None:
-                _shade_target(opts, mats, grad.slots, p)
-
-
 @allocating_kernel
 def _packet_space(nparams, nlobes, nd):
     """A packet's work space, a :data:`Packet` for ``nd`` derivative images (zeroed: idle
@@ -714,25 +683,50 @@ def _packet_space(nparams, nlobes, nd):
 @nogil_kernel
 def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
                 nlobes):
-    """Trace tiles of opts[TILE]^2 pixels (:func:`trace_tile`, samples s0 .. s1 - 1), each
-    taken from the queue the threads share (``queue[0]``, the next tile's number, row-major
-    over the image) as the last is done, until none is left. Each tile gets a new packet
-    work space (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters
-    and ``nlobes`` lobes), so that nothing a thread traced before steers it."""
-    w, h, tile = opts[W], opts[H], opts[TILE]
+    """Trace tiles of opts[TILE]^2 pixels, each taken from the queue the threads share
+    (``queue[0]``, the next tile's number, row-major over the image) as the last is done, until
+    none is left: samples s0 .. s1 - 1 of each pixel into the running ``sums`` (see
+    :func:`render_pass`), for each the radiance along its camera ray, and with opts[LAYERS] the
+    first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal; the
+    derivative images into ``grad``. Each tile gets a new packet work space
+    (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters and
+    ``nlobes`` lobes), so that nothing a thread traced before steers it. The tile's loop is
+    written here rather than in a kernel of its own: called, it rendered the white furnace
+    about 15 % slower (one thread); inlined, its own compile was wasted (11 s of CPU)."""
+    w, h, size = opts[W], opts[H], opts[TILE]
     nd = 0
     if grad is not None:
         nd = grad.slots.shape[0]
-    tx_n = (w + tile - 1) // tile
-    ntiles = tx_n * ((h + tile - 1) // tile)
+    tx_n = (w + size - 1) // size
+    ntiles = tx_n * ((h + size - 1) // size)
     while True:
         k = fetch_add(queue, 1)
         if k >= ntiles:
             return
-        x0, y0 = (k % tx_n) * tile, (k // tx_n) * tile
-        trace_tile(cam, opts, geo, mats, lights, seed,
-                   (x0, y0, min(x0 + tile, w), min(y0 + tile, h)), s0, s1, sums, grad,
-                   _packet_space(nparams, nlobes, nd))
+        x0, y0 = (k % tx_n) * size, (k // tx_n) * size
+        tile = (x0, y0, min(x0 + size, w), min(y0 + size, h))
+        total = (tile[2] - x0) * (tile[3] - y0) * (s1 - s0)
+        p = _packet_space(nparams, nlobes, nd)
+        fl, il, sh = p.fl, p.il, p.sh
+        start = 0
+        while True:
+            start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
+            if busy == 0:
+                break
+            trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False,
+                         PACKET)
+            _draw(fl, p.state)
+            shading, shadows = _vertices(opts, geo, mats, lights, p)
+            if grad is not None:
+                _emitted(p)
+            if shadows > 0:
+                # whole SIMD registers of lanes (eight numbers: AVX-512)
+                trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH],
+                             il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
+            if shading > 0:
+                _shade(opts, mats, p)
+                if grad is not None:
+                    _shade_target(opts, mats, grad.slots, p)
 
 
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
