@@ -1118,13 +1118,17 @@ def test_page_in_a_headless_browser(tmp_path):
 # -- the command line -------------------------------------------------------------------------
 
 def _brdf_fit(*args):
-    """The installed ``brdf-fit`` (beside this Python), started with ``args``."""
+    """The installed ``brdf-fit`` (beside this Python), started with ``args``, with SIGINT at
+    its default: a process inherits an ignored SIGINT (a test before this one in the worker
+    may have left it so), and Python then never turns it into KeyboardInterrupt."""
+    import signal
     import subprocess
     import sys
     from pathlib import Path
     script = Path(sys.executable).with_name("brdf-fit")
     return subprocess.Popen([str(script), *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 def test_cli_without_the_extra_says_how_to_install_it():
