@@ -2,8 +2,8 @@
 and kernels that borrow their arrays without counting references to them.
 
 Each duplicate specialisation of a library kernel cost tens of seconds on a cold cache; these
-toy kernels hold the three ways they arose (literal constants, read-only arrays, prange's
-unsigned counter) to one specialisation each.
+toy kernels hold the ways they arose (literal constants, read-only arrays) to one
+specialisation each. Threads share work through a queue (``in_threads``, ``share_queue``).
 """
 
 import contextlib
