@@ -9,7 +9,8 @@ numba loads a cached kernel only after it has imported and registered every impl
 could ever compile (``BaseContext.refresh``: its numpy, math, random, typed-container and linear
 algebra support, which imports scipy.linalg): 0.3-0.45 s of each command's start on the 2-core
 development host, for machine code that needs none of it. :func:`quick_loading` makes a kernel
-load without it; a kernel that does compile still gets it, from numba's compiler.
+load without it and without importing numba's modules to rebuild environments no kernel reads
+(:func:`_rebuild_env`); a kernel that does compile still gets all of it, from numba's compiler.
 
 This module holds no kernels and compiles none, so editing it leaves the cache valid; these
 hooks reach into numba internals (see :mod:`brdf._jit` for the version pin).
@@ -19,9 +20,10 @@ import hashlib
 import os
 import re
 import sys
+import threading
 
 import numpy as np
-from numba.core import caching, errors, types
+from numba.core import caching, environment, errors, types
 from numba.core.typing.typeof import Purpose, typeof, typeof_impl
 from numba.np import numpy_support
 
@@ -97,13 +99,13 @@ def _runtime_ready(target_context):
 class _ArraymathWithoutBlasProbe:
     """Import hook: ``numba.np.arraymath`` imports without its import-time probe for BLAS.
 
-    A cached kernel that holds any of numba's array functions imports their module on load
-    (to rebuild their environments), and ``numba.np.arraymath`` probes for BLAS on import by
-    importing all of ``scipy.linalg``: 0.1-0.25 s of a render's start. scipy is a dependency of
-    this package, so the probe's answer is known (BLAS is there); numba's linear algebra still
-    imports scipy's BLAS when a kernel using it compiles. The hook waits for that import
-    (a ``check`` never makes it; importing the module ahead cost it 0.04 s) and then leaves
-    ``sys.meta_path``."""
+    numba imports ``numba.np.arraymath`` when it registers its implementations to compile (and
+    when it loads another package's cached function that holds one of its array functions), and
+    the module probes for BLAS on import by importing all of ``scipy.linalg``: 0.1-0.25 s on
+    the 2-core development host. scipy is a dependency of this package, so the probe's answer
+    is known (BLAS is there); numba's linear algebra still imports scipy's BLAS when a kernel
+    using it compiles. The hook waits for that import (importing the module ahead cost a
+    ``check`` 0.04 s) and then leaves ``sys.meta_path``."""
 
     def find_spec(self, name, path=None, target=None):
         if name != "numba.np.arraymath":
@@ -135,14 +137,50 @@ def _arraymath_without_blas_probe():
         sys.meta_path.insert(0, _ArraymathWithoutBlasProbe())
 
 
+_loading = threading.local()
+
+
+def _rebuild_env(modname, consts, env_name):
+    """numba's ``environment._rebuild_env``, which unpickles a cached function's environment,
+    except that while one of this package's kernels loads, a numba module that is not imported
+    yet is not imported for it.
+
+    An environment keeps its module's globals for object-mode code only (numba's
+    ``pylowering``); the package's kernels are all nopython, so theirs are never read. Yet a
+    kernel that allocates an array holds numba's implementation of ``np.zeros``, whose module,
+    ``numba.np.arrayobj``, took 0.06 s of a warm ``check`` to import for nothing. Its
+    environment gets a stand-in namespace holding only the module's name (what numba saves of
+    it again)."""
+    if (getattr(_loading, "kernel", False) and modname.startswith("numba.")
+            and modname not in sys.modules
+            and environment.lookup_environment(env_name) is None):
+        env = environment.Environment({"__name__": modname})
+        env.consts[:] = consts
+        env.env_name = env_name
+        environment.Environment._memo[env_name] = env
+        return env
+    return _numba_rebuild_env(modname, consts, env_name)
+
+
+# pickled cache entries name the function by module and name, so it is replaced there
+_numba_rebuild_env = getattr(environment._rebuild_env, "__wrapped__", environment._rebuild_env)
+_rebuild_env.__wrapped__ = _numba_rebuild_env
+environment._rebuild_env = _rebuild_env
+
+
 class _QuickLoad(caching.FunctionCache):
     """numba's cache of one function, loading without first registering all of numba's
-    implementations (see the module docstring)."""
+    implementations, and without importing numba's modules to rebuild environments no kernel
+    reads (see the module docstring and :func:`_rebuild_env`)."""
 
     def load_overload(self, sig, target_context):
         _runtime_ready(target_context)
-        with self._guard_against_spurious_io_errors():
-            return self._load_overload(sig, target_context)
+        _loading.kernel = True
+        try:
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+        finally:
+            _loading.kernel = False
 
 
 #: numba's typing of tuples, named tuples and any tuple subclass without one of its own
