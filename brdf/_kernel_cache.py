@@ -9,7 +9,8 @@ numba loads a cached kernel only after it has imported and registered every impl
 could ever compile (``BaseContext.refresh``: its numpy, math, random, typed-container and linear
 algebra support, which imports scipy.linalg): 0.3-0.45 s of each command's start on the 2-core
 development host, for machine code that needs none of it. :func:`quick_loading` makes a kernel
-load without it and without importing numba's modules to rebuild environments no kernel reads
+load without it, without compiling numba's runtime functions (:func:`_runtime_ready`) and
+without importing numba's modules to rebuild environments no kernel reads
 (:func:`_rebuild_env`); a kernel that does compile still gets all of it, from numba's compiler.
 
 This module holds no kernels and compiles none, so editing it leaves the cache valid; these
@@ -22,6 +23,7 @@ import re
 import sys
 import threading
 
+import llvmlite.binding as ll
 import numpy as np
 from numba.core import caching, environment, errors, types
 from numba.core.typing.typeof import Purpose, typeof, typeof_impl
@@ -84,14 +86,22 @@ _runtime = {"ready": False}
 
 
 def _runtime_ready(target_context):
-    """What a loaded kernel's machine code links against, set up once per process: numba's
-    reference-counting runtime (its C entry points, ``NRT_*``, and the atomic operations they
-    use). numba's C helpers (``numba_*``) and Python's exception objects are registered when
-    the target context is made; a parallel kernel starts its threading layer itself, from the
-    cached kernel's own ``reload_init`` hooks."""
+    """What a loaded kernel's machine code links against, set up once per process: the C entry
+    points of numba's reference-counting runtime (``NRT_*``). numba's C helpers (``numba_*``)
+    and Python's exception objects are registered when the target context is made; a parallel
+    kernel starts its threading layer itself, from the cached kernel's own ``reload_init``
+    hooks.
+
+    numba's own set-up (``rtsys.initialize``) also compiles the runtime's LLVM functions
+    (reference counts, atomic adds) to machine code: 0.03 s of every command's start. A kernel
+    does not call that machine code: every kernel links its own private copy of those functions
+    (:func:`brdf._jit._private_copies`). So only the C entry points are registered here, as
+    numba registers them; numba's compiler still runs its full set-up before it compiles."""
     if not _runtime["ready"]:
-        from numba.core.runtime import rtsys
-        rtsys.initialize(target_context)
+        from numba.core.runtime import _nrt_python, rtsys
+        if not rtsys._init:
+            for name, address in _nrt_python.c_helpers.items():
+                ll.add_symbol(name if name.startswith("_") else "NRT_" + name, address)
         _arraymath_without_blas_probe()
         _runtime["ready"] = True
 

@@ -13,8 +13,9 @@ import brdf
 # hooks), check (kernels that allocate, through numba's runtime) and say whether numba loaded
 # its registry of implementations (numba.np.polynomial is one of its modules), scipy.linalg
 # (numba's probe for BLAS), numba.np.arrayobj (the module of numba's np.zeros, which the
-# check's kernels hold, imported only to rebuild its environment), then compile a function
-# that needs them (np.dot, through scipy's BLAS, added to an array numba allocates).
+# check's kernels hold, imported only to rebuild its environment) or compiled its runtime's
+# LLVM functions, then compile a function that needs all of them (np.dot, through scipy's
+# BLAS, added to an array numba allocates).
 _FRESH = """
 import json, sys
 import numpy as np
@@ -26,10 +27,12 @@ f = m.eval(directions_from_degrees(t, 0.0 * t), directions_from_degrees(t, 180.0
 report = brdf.check(m)
 loaded_registry = [m for m in ("numba.np.polynomial.polynomial_functions", "scipy.linalg",
                                 "numba.np.arrayobj") if m in sys.modules]
+from numba.core.runtime import rtsys
+runtime_compiled = rtsys._init
 import numba
 dot = numba.njit(lambda a: np.dot(a, a) + np.zeros(2))(np.arange(3.0))
 print(json.dumps({"f": f.tolist(), "passed": bool(report.passed), "registry": loaded_registry,
-                  "dot": dot.tolist()}))
+                  "runtime_compiled": runtime_compiled, "dot": dot.tolist()}))
 """
 
 
@@ -45,6 +48,7 @@ def test_a_warm_process_loads_kernels_without_numbas_registry():
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
     assert out["registry"] == []
+    assert out["runtime_compiled"] is False
     assert np.array_equal(np.array(out["f"]), expected)
     assert out["passed"] == passed
     assert out["dot"] == [5.0, 5.0]
