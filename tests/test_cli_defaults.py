@@ -70,3 +70,30 @@ def test_cli_defaults_are_the_library_defaults(command):
             assert cli is None or _same(cli, library) or (cli == [] and library is None), \
                 f"{command} --{name.replace('_', '-')}: {cli!r}, {function.__name__}: {library!r}"
     assert compared, f"no option of {command} matches a parameter of {CALLS[command]}"
+
+
+def _shape(parser):
+    """What a parser accepts and says: each action's options, destination, default, help and
+    choices, and the same of each subcommand's parser."""
+    shape = []
+    for a in parser._actions:
+        shape.append((tuple(a.option_strings), a.dest, repr(a.default), a.help, a.nargs,
+                      a.required, getattr(a.type, "__name__", repr(a.type)), a.metavar))
+        if isinstance(a, argparse._SubParsersAction):
+            shape.append({name: _shape(p) for name, p in a.choices.items()})
+    return shape
+
+
+def test_a_parser_built_for_one_subcommand_parses_it_as_the_whole_parser_does():
+    """The command line builds only the options of the subcommand it names
+    (``build_parser(argv)``); that subcommand's parser must be the one the whole parser
+    holds, and a word that names no subcommand gets the whole parser (which lists them)."""
+    whole = _subcommands()
+    for name in whole:
+        for argv in ([name], ["--debug", name, "x"], ["--plugin", "p.py", "-q", name]):
+            action = next(a for a in build_parser(argv)._actions
+                          if isinstance(a, argparse._SubParsersAction))
+            assert list(action.choices) == [name]
+            assert _shape(action.choices[name]) == _shape(whole[name]), argv
+    for argv in (["chek"], [], ["--plugin", "check"], ["-q"]):
+        assert _shape(build_parser(argv)) == _shape(build_parser()), argv
