@@ -20,7 +20,7 @@ import threading
 import llvmlite.binding as ll
 import numba
 import numpy as np
-from numba.core import cgutils, codegen, datamodel, types
+from numba.core import cgutils, codegen, compiler, datamodel, types
 from numba.extending import intrinsic
 
 from ._kernel_cache import quick_loading
@@ -75,6 +75,55 @@ def _private_copies(codegen_library):
 _SYMBOL_PREFIX = "_ZN4brdf"
 if not getattr(codegen.CPUCodeLibrary, "_brdf_private_copies", False):
     _private_copies(codegen.CPUCodeLibrary)
+
+
+class _InlineCompiler(compiler.Compiler):
+    """numba's compiler, marking the code library it makes as an :func:`inline_kernel`'s."""
+
+    def compile_extra(self, func):
+        if self.state.library is None:  # as numba's lowering would make it
+            library = self.state.targetctx.codegen().create_library(func.__qualname__)
+            library.enable_object_caching()
+            library.brdf_inline = True
+            self.state.library = library
+        return super().compile_extra(func)
+
+
+def _inline_machine_code_unoptimised(codegen_library):
+    """Patch numba's ``JITCodeLibrary`` so that an :func:`inline_kernel`'s own machine code is
+    generated without optimisation (LLVM's ``-O0`` code generator, on a copy of its module).
+
+    Callers never run that code: they link the kernel's optimised IR and inline it, and only
+    Python calls it (tests). Generating it with numba's optimising code generator took a
+    fifth of LLVM's code generation when every kernel compiled in one process. The module
+    callers link is left as it was optimised (the optimising code generator rewrote it in
+    place), and the machine code is cached as numba caches any."""
+    finalize_specific = codegen_library._finalize_specific
+    machines = {}
+
+    def finalize_inline_unoptimised(library):
+        if not getattr(library, "brdf_inline", False) or library._compiled_object is not None:
+            finalize_specific(library)
+            return
+        machine = machines.get(id(library.codegen))
+        if machine is None:
+            options = {"opt": 0}
+            library.codegen._customize_tm_options(options)  # numba's CPU, features, relocation
+            machine = machines[id(library.codegen)] = ll.Target.from_triple(
+                ll.get_process_triple()).create_target_machine(**options)
+        code = machine.emit_object(library._final_module.clone())
+        # numba's engine loads the object the cache hook hands it instead of compiling; the
+        # hook forgets it, and numba's cache saves it afterwards
+        library._compiled_object = code
+        finalize_specific(library)
+        library._compiled_object, library._compiled = code, True
+
+    codegen_library._finalize_specific = finalize_inline_unoptimised
+    codegen_library._brdf_inline_unoptimised = True
+
+
+if not getattr(codegen.JITCodeLibrary, "_brdf_inline_unoptimised", False):
+    _inline_machine_code_unoptimised(codegen.JITCodeLibrary)
 
 
 def _without_literals(dispatcher, keep=()):
@@ -184,9 +233,12 @@ def inline_kernel(fn):
     row index 0, a flag, a family's variant) are typed as variables, as :func:`kernel` does:
     LLVM folds them once the callee is inlined, whereas their literal types compiled the same
     functions up to four times (a first ``check`` of ``lambert + ggx`` spent 13.0 s compiling
-    with them, 11.7 s without)."""
+    with them, 11.7 s without).
+
+    The kernel's own machine code, which only Python calls, is generated without optimisation
+    (:func:`_inline_machine_code_unoptimised`)."""
     return _always_inlined(_borrowing(_without_literals(quick_loading(numba.njit(
-        fn, **_OPTIONS, _nrt=False)), keep=_LITERAL)))
+        fn, **_OPTIONS, _nrt=False, pipeline_class=_InlineCompiler)), keep=_LITERAL)))
 
 
 #: The parameters of an :func:`inline_kernel` whose constant arguments keep their literal type.

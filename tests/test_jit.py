@@ -170,6 +170,71 @@ def test_kernels_are_compiled_without_a_c_callable_wrapper(compile_with):
     assert cres.fndesc.llvm_cfunc_wrapper_name not in names
 
 
+# Toy kernels for fresh processes: an inline kernel, and callers in a module of their own
+# (numba's cache of a kernel outside the package is dropped when its file changes)
+_INLINE_TOY = """
+from brdf._jit import inline_kernel
+
+@inline_kernel
+def scaled(a, k):
+    return 3.0 * a[k] + 1.0
+"""
+_CALLERS = """
+from brdf._jit import kernel
+from toy_inline import scaled
+
+@kernel
+def {name}(a):
+    return scaled(a, {index})
+"""
+_RUN = """
+import json, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import toy_inline, toy_callers
+a = np.arange(4.0)
+caller = getattr(toy_callers, sys.argv[2])
+values = {"caller": caller(a), "inline": toy_inline.scaled(a, 2)}
+stats = {"inline": toy_inline.scaled.stats, "caller": caller.stats}
+print(json.dumps({"values": values,
+                  "compiled": {k: len(s.cache_misses) for k, s in stats.items()},
+                  "loaded": {k: len(s.cache_hits) for k, s in stats.items()}}))
+"""
+
+
+def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
+    """An inline kernel's own machine code comes from LLVM's unoptimised code generator
+    (``_inline_machine_code_unoptimised``); it must still run from Python, be saved to the
+    disk cache, and load from it both to run and to be linked into a caller compiled later."""
+    import json
+    import os
+    (tmp_path / "toy_inline.py").write_text(_INLINE_TOY)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+
+    def run(name, index):
+        (tmp_path / "toy_callers.py").write_text(_CALLERS.format(name=name, index=index))
+        done = subprocess.run([sys.executable, "-c", _RUN, str(tmp_path), name], env=env,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return json.loads(done.stdout.splitlines()[-1])
+
+    marked = {}
+    for compile_with in (inline_kernel, kernel):
+        d = compile_with(_doubled_into)
+        d._cache = numba.core.caching.NullCache()
+        d(np.zeros(1), np.zeros(1))
+        (cres,) = d.overloads.values()
+        marked[compile_with.__name__] = getattr(cres.library, "brdf_inline", False)
+    assert marked == {"inline_kernel": True, "kernel": False}
+    cold = run("first", "0")
+    assert cold["values"] == {"caller": 1.0, "inline": 7.0}
+    assert cold["compiled"] == {"inline": 1, "caller": 1}
+    warm = run("last", "a.shape[0] - 1")  # a caller new to the cache
+    assert warm["values"] == {"caller": 10.0, "inline": 7.0}
+    assert warm["compiled"] == {"inline": 0, "caller": 1}
+    assert warm["loaded"] == {"inline": 1, "caller": 0}
+
+
 @nogil_kernel
 def _take_items(taken, queue):
     """Take items off ``queue`` until none is left, counting in ``taken`` how often each was

@@ -98,4 +98,7 @@ def test_packed_terms_match_their_formulas():
 def test_scalar_term_broadcasts_to_channels():
     q = np.array(Dielectric(eta=1.5).pack(3))
     values = {fresnel(q, 0, 3, ch, 0.3) for ch in range(3)}
-    assert values == {dielectric_reflectance(0.3, 1.5)}
+    assert len(values) == 1
+    # called from Python, an inline kernel runs its own unoptimised machine code, which may
+    # round the last bit apart from another kernel's
+    assert values.pop() == pytest.approx(dielectric_reflectance(0.3, 1.5), rel=1e-15)
