@@ -2,8 +2,10 @@
 and hypothesis runs derandomised so a failure reproduces on every run and machine."""
 
 import os
+import signal
 import sys
 
+import pytest
 from hypothesis import settings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -40,3 +42,29 @@ def pytest_collection_modifyitems(config, items):
     """Slow tests first: under xdist the workers then end on short tests together, instead of
     one worker finishing a long test while the other waits."""
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+def _signal_state():
+    """Python's handler of each of :data:`_SIGNALS`, and whether the process ignores it (the
+    kernel's mask, which a subprocess inherits, whoever set it)."""
+    with open("/proc/self/status") as f:
+        ignored = int(next(line for line in f if line.startswith("SigIgn:")).split()[1], 16)
+    return {signal.Signals(s).name: (signal.getsignal(s), bool(ignored >> (s - 1) & 1))
+            for s in _SIGNALS}
+
+
+@pytest.fixture(autouse=True)
+def _signals_as_found():
+    """Every test leaves the signal handlers as it found them: a SIGINT left ignored is
+    inherited by every later subprocess of the worker (``brdf-fit explore`` then never stops
+    on Ctrl-C), and a handler left installed outlives its test."""
+    if not os.path.exists("/proc/self/status"):
+        yield
+        return
+    before = _signal_state()
+    yield
+    after = _signal_state()
+    assert after == before, f"the test changed the signal handlers: {before} -> {after}"

@@ -1119,8 +1119,10 @@ def test_page_in_a_headless_browser(tmp_path):
 
 def _brdf_fit(*args):
     """The installed ``brdf-fit`` (beside this Python), started with ``args``, with SIGINT at
-    its default: a process inherits an ignored SIGINT (a test before this one in the worker
-    may have left it so), and Python then never turns it into KeyboardInterrupt."""
+    its default: a process inherits an ignored SIGINT, and Python then never turns it into
+    KeyboardInterrupt. The suite's own processes have it ignored when the suite was started in
+    the background of a script (a non-interactive shell ignores SIGINT in its ``&`` jobs), as
+    in the CI runs where this test once hung."""
     import signal
     import subprocess
     import sys
