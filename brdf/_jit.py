@@ -24,6 +24,7 @@ from numba.core import cgutils, codegen, compiler, datamodel, types
 from numba.extending import intrinsic
 
 from ._kernel_cache import quick_loading
+from ._threads import thread_count
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 #: numba's options for every kernel. Without a C-callable wrapper (``no_cfunc_wrapper``: the
@@ -265,8 +266,8 @@ def _always_inlined(dispatcher):
 
 def threaded_kernel(*rows):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
-    call it on equal chunks of those rows at once, one per thread numba would use
-    (:func:`numba.get_num_threads`, which :func:`brdf._threads.serial_below` lowers to one):
+    call it on equal chunks of those rows at once, one per thread of
+    :func:`brdf._threads.thread_count` (which :func:`brdf._threads.serial_below` lowers to one):
     a ``prange`` loop's speed without numba's parallel compile (its outlined loop body
     and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
     whose first axis is the loop's; one whose first axis has another length (an empty
@@ -292,7 +293,7 @@ class RowThreads:
 
     def __call__(self, *args):
         n = args[self.rows[0]].shape[0]
-        threads = min(numba.get_num_threads(), n)
+        threads = min(thread_count(), n)
         if threads <= 1:
             return self.dispatcher(*args)
         # chunk t ends at ceil(n t / threads): rows dealt out to the threads like cards
@@ -362,13 +363,13 @@ def in_threads(count, work, short=False):
 
 
 def share_queue(kernel, items, *args):
-    """Call ``kernel(*args, queue)`` in ``min(items, numba.get_num_threads())`` threads at
+    """Call ``kernel(*args, queue)`` in ``min(items, thread_count())`` threads at
     once (:func:`in_threads`, ``short``): ``queue`` is a new counter (an int64 array of one)
     from which the calls take the numbers of items 0 .. ``items`` - 1 with :func:`fetch_add`
     until none is left. For a :func:`nogil_kernel` whose items' results do not depend on who
     computed them (the fit's loss passes, whose blocks' sums are added up afterwards)."""
     queue = np.zeros(1, np.int64)
-    in_threads(max(1, min(items, numba.get_num_threads())), lambda: kernel(*args, queue),
+    in_threads(max(1, min(items, thread_count())), lambda: kernel(*args, queue),
                short=True)
 
 

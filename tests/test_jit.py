@@ -412,3 +412,32 @@ def test_the_model_kernels_give_the_same_bytes_on_one_thread_and_two():
 
     for one, two in zip(run(1), run(2)):
         assert one.tobytes() == two.tobytes()
+
+
+def test_the_thread_count_is_numbas_until_a_block_sets_its_own():
+    from brdf._threads import SERIAL_SAMPLES, serial_below, thread_count, using_threads
+    most = numba.config.NUMBA_NUM_THREADS
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        assert thread_count() == 1
+        with using_threads(2):
+            assert thread_count() == min(2, most)
+            with serial_below(10):
+                assert thread_count() == 1
+            with serial_below(SERIAL_SAMPLES):
+                assert thread_count() == min(2, most)
+            # the count is this thread's: another sees numba's own for it
+            seen = []
+            other = threading.Thread(target=lambda: seen.append(
+                (thread_count(), numba.get_num_threads())))
+            other.start()
+            other.join()
+            assert seen[0][0] == seen[0][1]
+        assert thread_count() == 1
+        with using_threads(10 ** 6):
+            assert thread_count() == most
+        with using_threads(0):
+            assert thread_count() == 1
+    finally:
+        numba.set_num_threads(before)

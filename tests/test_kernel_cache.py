@@ -9,13 +9,13 @@ import numpy as np
 
 import brdf
 
-# A fresh process: evaluate (a parallel kernel, whose threading layer starts from the cache's
-# hooks), check (kernels that allocate, through numba's runtime) and say whether numba loaded
-# its registry of implementations (numba.np.polynomial is one of its modules), scipy.linalg
-# (numba's probe for BLAS), numba.np.arrayobj (the module of numba's np.zeros, which the
-# check's kernels hold, imported only to rebuild its environment) or compiled its runtime's
-# LLVM functions, then compile a function that needs all of them (np.dot, through scipy's
-# BLAS, added to an array numba allocates).
+# A fresh process: evaluate (a kernel run in threads), check (kernels that allocate, through
+# numba's runtime), render on two threads, and say whether numba loaded its registry of
+# implementations (numba.np.polynomial is one of its modules), scipy.linalg (numba's probe for
+# BLAS), numba.np.arrayobj (the module of numba's np.zeros, which the check's kernels hold,
+# imported only to rebuild its environment), compiled its runtime's LLVM functions or started
+# its threading layer (none of the package's kernels runs in it), then compile a function
+# that needs all of them (np.dot, through scipy's BLAS, added to an array numba allocates).
 _FRESH = """
 import json, sys
 import numpy as np
@@ -25,6 +25,11 @@ m = brdf.parse("lambert(albedo=0.5) + ggx(alpha=0.3)")
 t = np.linspace(0.0, 80.0, 9)
 f = m.eval(directions_from_degrees(t, 0.0 * t), directions_from_degrees(t, 180.0 + 0.0 * t))
 report = brdf.check(m)
+from brdf import render
+image = render.render(render.builtin("cornell"), spp=1, size=(8, 8), threads=2,
+                      progress=False).image
+from numba.np.ufunc import parallel
+layer_started = parallel._is_initialized
 loaded_registry = [m for m in ("numba.np.polynomial.polynomial_functions", "scipy.linalg",
                                 "numba.np.arrayobj") if m in sys.modules]
 from numba.core.runtime import rtsys
@@ -32,7 +37,9 @@ runtime_compiled = rtsys._init
 import numba
 dot = numba.njit(lambda a: np.dot(a, a) + np.zeros(2))(np.arange(3.0))
 print(json.dumps({"f": f.tolist(), "passed": bool(report.passed), "registry": loaded_registry,
-                  "runtime_compiled": runtime_compiled, "dot": dot.tolist()}))
+                  "runtime_compiled": runtime_compiled, "layer_started": layer_started,
+                  "rendered": bool(np.isfinite(image).all() and image.mean() > 0),
+                  "dot": dot.tolist()}))
 """
 
 
@@ -49,6 +56,7 @@ def test_a_warm_process_loads_kernels_without_numbas_registry():
     out = json.loads(done.stdout)
     assert out["registry"] == []
     assert out["runtime_compiled"] is False
+    assert out["layer_started"] is False and out["rendered"]
     assert np.array_equal(np.array(out["f"]), expected)
     assert out["passed"] == passed
     assert out["dot"] == [5.0, 5.0]

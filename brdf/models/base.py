@@ -610,7 +610,7 @@ class Model(Component):
         the work that machine load does not skew, for ``benchmarks/bench_check.py``. With
         ``gradient``, also the derivatives of :meth:`albedo_gradient`; ``nch`` channels
         (default: the model's own)."""
-        import numba
+        from .._threads import thread_count
         from . import _kernels
         tol, max_panels = cubature_options(tol, max_panels)
         wi = direction_array(wi, "wi")
@@ -624,7 +624,7 @@ class Model(Component):
             first = shared = np.arange(len(flat))
         # each thread gets a contiguous chunk of the directions: dealing them out like
         # cards gives every thread its share of the costly grazing ones, wherever they cluster
-        deal = np.argsort(np.arange(len(first)) % numba.get_num_threads(), kind="stable")
+        deal = np.argsort(np.arange(len(first)) % thread_count(), kind="stable")
         c = self._compiled() if nch is None else self.compile(nch)
         n = len(first)
         dealt = (np.zeros((n, c.nch)), np.zeros((n, c.nch)), np.zeros(n, dtype=np.int64))

@@ -20,6 +20,7 @@ from typing import Optional
 import numpy as np
 
 from .. import arguments
+from .._threads import thread_count, using_threads
 from ..arguments import integer, shown
 from ..errors import InputError
 from ..progress import task
@@ -169,8 +170,9 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     jitter : bool
         Random positions within each pixel (a box filter); False traces pixel centres.
     threads : int, optional
-        Worker threads, at least 1 (default: numba's, all cores; more than numba's count
-        means numba's count). The image does not depend on it.
+        Worker threads, at least 1 (default: numba's count, all cores unless
+        ``numba.set_num_threads`` lowered it; more than ``NUMBA_NUM_THREADS`` means that
+        many). The image does not depend on it.
     progress : bool, optional
         None (default): a bar on stderr when it is a terminal, otherwise one line when the
         render ends (``render: 64 spp in 3.1 s``); True: the bar; False: nothing (see
@@ -187,7 +189,6 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     -------
     RenderResult
     """
-    import numba
     from ._integrator import Gradient, Sums, render_pass
     if not isinstance(scene, Scene):
         raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "
@@ -217,13 +218,11 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     acc2, aov = (np.zeros((h, w, 3)), np.zeros((h, w, 6))) if layers else (
         np.zeros((1, 1, 3)), np.zeros((1, 1, 6)))
     args = (cam, compiled.geo, compiled.mats, compiled.lights)
-    old = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-    opts = np.array([w, h, depth, rr_depth, STRATEGIES[strategy], int(bool(jitter)),
-                     TILE, numba.get_num_threads(), int(bool(layers)), target, evaluate],
-                    dtype=np.int64)
-    try:
+    # every kernel call of the render (the material drivers' too) uses the same count
+    with using_threads(thread_count() if threads is None else threads):
+        opts = np.array([w, h, depth, rr_depth, STRATEGIES[strategy], int(bool(jitter)),
+                         TILE, thread_count(), int(bool(layers)), target, evaluate],
+                        dtype=np.int64)
         t0 = time.perf_counter()
         # the first call compiles (or loads the cache); time it apart, on a 1-pixel image
         probe = opts.copy()
@@ -245,8 +244,6 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
                             None if derivatives is None else Gradient(slots, dacc))
                 meter.update(s1 - s0)
             seconds = time.perf_counter() - t0
-    finally:
-        numba.set_num_threads(old)
     n = float(spp)
     mean = acc / n
     grad = dacc / n if derivatives is not None else None
