@@ -6,7 +6,6 @@ toy kernels hold the ways they arose (literal constants, read-only arrays) to on
 specialisation each. Threads share work through a queue (``in_threads``, ``share_queue``).
 """
 
-import contextlib
 import itertools
 import subprocess
 import sys
@@ -21,6 +20,7 @@ from numba.core import types
 
 from brdf._jit import (allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
                        nogil_kernel, share_queue, threaded_kernel)
+from brdf._threads import SERIAL_SAMPLES, serial_below, thread_count, using_threads
 
 
 @kernel
@@ -168,6 +168,8 @@ def test_kernels_are_compiled_without_a_c_callable_wrapper(compile_with):
     names = [fn.name for fn in cres.library.get_defined_functions()]
     assert cres.fndesc.llvm_cpython_wrapper_name in names
     assert cres.fndesc.llvm_cfunc_wrapper_name not in names
+    # marked for the unoptimised code generator (test_an_inline_kernel_is_cached_...) or not
+    assert getattr(cres.library, "brdf_inline", False) == (compile_with is inline_kernel)
 
 
 # Toy kernels for fresh processes: an inline kernel, and callers in a module of their own
@@ -218,14 +220,6 @@ def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
         assert done.returncode == 0, done.stderr
         return json.loads(done.stdout.splitlines()[-1])
 
-    marked = {}
-    for compile_with in (inline_kernel, kernel):
-        d = compile_with(_doubled_into)
-        d._cache = numba.core.caching.NullCache()
-        d(np.zeros(1), np.zeros(1))
-        (cres,) = d.overloads.values()
-        marked[compile_with.__name__] = getattr(cres.library, "brdf_inline", False)
-    assert marked == {"inline_kernel": True, "kernel": False}
     cold = run("first", "0")
     assert cold["values"] == {"caller": 1.0, "inline": 7.0}
     assert cold["compiled"] == {"inline": 1, "caller": 1}
@@ -267,7 +261,7 @@ def test_threads_share_a_queue_of_items():
 @pytest.mark.parametrize("threads", [1, 2])
 def test_a_shared_queue_hands_each_item_to_exactly_one_call(threads):
     taken = np.zeros(20_000, np.int64)
-    with numba_threads(threads):
+    with using_threads(threads):
         share_queue(_take_items, taken.shape[0], taken)
     assert (taken == 1).all()
 
@@ -279,23 +273,12 @@ def test_a_shared_queue_runs_from_a_pool_thread_too():
     taken = np.zeros(1000, np.int64)
 
     def from_pool():
-        with numba_threads(2):
+        with using_threads(2):
             share_queue(_take_items, taken.shape[0], taken)
 
     with ThreadPoolExecutor(1) as pool:
         pool.submit(from_pool).result(timeout=60)
     assert (taken == 1).all()
-
-
-@contextlib.contextmanager
-def numba_threads(n):
-    """numba's thread count for this thread while in the block (at most what numba has)."""
-    before = numba.get_num_threads()
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
 
 
 @pytest.mark.parametrize("short", [False, True])
@@ -378,14 +361,10 @@ def test_a_threaded_kernel_splits_its_rows_and_sums_its_results(n):
     (``scale``); the counts add up; one thread gives the same bytes."""
     a = np.linspace(-1.0, 2.0, n)
     out2, out1 = np.empty(n), np.empty(n)
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(2)
+    with using_threads(2):
         negative = _rows_doubled(a, np.array([0.5]), out2)
-        numba.set_num_threads(1)
+    with using_threads(1):
         assert _rows_doubled(a, np.array([0.5]), out1) == negative == np.sum(a < 0.0)
-    finally:
-        numba.set_num_threads(before)
     np.testing.assert_array_equal(out2, 2.0 * a + 0.5)
     assert out1.tobytes() == out2.tobytes()
 
@@ -403,19 +382,14 @@ def test_the_model_kernels_give_the_same_bytes_on_one_thread_and_two():
     u = rng.random((1001, 2))
 
     def run(threads):
-        before = numba.get_num_threads()
-        numba.set_num_threads(threads)
-        try:
+        with using_threads(threads):
             return (m.eval(wi, wo), m.pdf(wi, wo), *m.sample(wi, u), m.albedo(wi[:9]))
-        finally:
-            numba.set_num_threads(before)
 
     for one, two in zip(run(1), run(2)):
         assert one.tobytes() == two.tobytes()
 
 
 def test_the_thread_count_is_numbas_until_a_block_sets_its_own():
-    from brdf._threads import SERIAL_SAMPLES, serial_below, thread_count, using_threads
     most = numba.config.NUMBA_NUM_THREADS
     before = numba.get_num_threads()
     try:

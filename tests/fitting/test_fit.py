@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import brdf
+from brdf._threads import using_threads
 from brdf.errors import BRDFError, InputError, ParameterError
 from brdf.fitting import losses
 from brdf.fitting.problem import Problem
@@ -120,19 +121,14 @@ def per_pair_loss_and_gradient(p, x):
                                                (SPECS[6] + " + lambert(albedo=0.1)", "log", ()),
                                                (SPECS[0] + " + beckmann", "relative-l2", ())])
 def test_loss_gradient_pass_agrees_with_per_pair_derivatives(rgb_table, spec, loss, shared):
-    import numba
     p = Problem(rgb_table, spec, loss=loss, shared=shared)
     x = p.x0 + 0.2 * (p.random_x(np.random.default_rng(2), 1)[0] - p.x0)
     value, grad = p.loss_and_gradient(x)
     ref_value, ref_grad = per_pair_loss_and_gradient(p, x)
     assert value == pytest.approx(ref_value, rel=1e-12)
     assert np.all(np.abs(grad - ref_grad) <= 1e-12 * np.abs(ref_grad).max()), (grad, ref_grad)
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:  # the same bits on one thread: the blocks' sums are added in a fixed order
+    with using_threads(1):  # the same bits on one thread: the blocks' sums add in a fixed order
         again = p.loss_and_gradient(x)
-    finally:
-        numba.set_num_threads(threads)
     assert again[0] == value and np.array_equal(again[1], grad)
 
 
@@ -141,7 +137,6 @@ def test_loss_gradient_pass_agrees_with_per_pair_derivatives(rgb_table, spec, lo
 @pytest.mark.parametrize("spec", SPECS)
 @pytest.mark.parametrize("loss", ["cosine-l2", "l2", "log"])
 def test_loss_pass_agrees_with_values_scored_apart(rgb_table, spec, loss):
-    import numba
     p = Problem(rgb_table, spec, loss=loss)
     rng = np.random.default_rng(3)
     X = np.array([p.x0 + 0.2 * (x - p.x0) for x in p.random_x(rng, 4)])
@@ -151,12 +146,8 @@ def test_loss_pass_agrees_with_values_scored_apart(rgb_table, spec, loss):
         ref = p.score(p.model_values(x), p.terms)  # f stored, then the terms in numpy's order
         assert np.all(np.abs(got - ref) <= 1e-12 * np.abs(ref).max()), (got, ref)
         assert got.sum() == pytest.approx(per_pair_loss_and_gradient(p, x)[0], rel=1e-12)
-    threads = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:  # the same bits on one thread
+    with using_threads(1):  # the same bits on one thread
         again = p.channel_losses(X)
-    finally:
-        numba.set_num_threads(threads)
     assert np.array_equal(again, losses_)
 
 
@@ -181,14 +172,10 @@ def test_passes_over_many_blocks_give_the_same_bytes_on_one_thread_and_on_two(sp
         return (p.channel_losses(X), *p.loss_and_gradient(X[1]),
                 p.score(p.model_values(X[2]), metric))
 
-    threads = numba.get_num_threads()
-    try:
-        numba.set_num_threads(2)
+    with using_threads(2):
         two = passes()
-        numba.set_num_threads(1)
+    with using_threads(1):
         one = passes()
-    finally:
-        numba.set_num_threads(threads)
     for a, b in zip(one, two):
         assert np.array_equal(a, b)
 

@@ -114,17 +114,14 @@ def test_compare_ranks_a_lobe_above_plain_lambert_on_the_paper(paper):
 
 def test_same_seed_same_bytes_for_any_thread_count(paper, monkeypatch):
     import numba
+    from brdf._threads import using_threads
     from brdf.fitting import nlopt_fit
-    before = numba.get_num_threads()
-    try:
-        numba.set_num_threads(1)
+    with using_threads(1):
         monkeypatch.setattr(nlopt_fit, "RUN_WORKERS", 1)
         one = brdf.fit(paper, "lambert + beckmann", seed=3)
-        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    with using_threads(numba.config.NUMBA_NUM_THREADS):
         monkeypatch.setattr(nlopt_fit, "RUN_WORKERS", 3)
         many = brdf.fit(paper, "lambert + beckmann", seed=3)
-    finally:
-        numba.set_num_threads(before)
     assert report_bytes(one) == report_bytes(many)
     other = brdf.fit(paper, "lambert + beckmann", seed=4)
     assert [r["start"] for r in other.runs] != [r["start"] for r in one.runs]
