@@ -60,12 +60,18 @@ def _private_copies(codegen_library):
         module = library._final_module
         linked = [fn for fn in module.functions
                   if not fn.is_declaration and own is not None and fn.name not in own]
-        if any(fn.name.startswith(_SYMBOL_PREFIX) for fn in module.functions):
-            for fn in linked:
-                fn.linkage = ll.Linkage.internal
-                if fn.name in _ALWAYS_INLINE:
-                    fn.add_function_attribute("alwaysinline")
-        optimize(library)
+        if not _holds_package_code(module):
+            optimize(library)
+            return
+        for fn in linked:
+            fn.linkage = ll.Linkage.internal
+            if fn.name in _ALWAYS_INLINE:
+                fn.add_function_attribute("alwaysinline")
+        if library.name in _NARROW:
+            optimize(library)
+            return
+        with _tuned(library.codegen):
+            optimize(library)
 
     codegen_library.finalize = finalize_owning
     codegen_library._optimize_final_module = optimize_private
@@ -74,8 +80,94 @@ def _private_copies(codegen_library):
 
 # numba's mangled names spell each part of a qualified name as <length><part>
 _SYMBOL_PREFIX = "_ZN4brdf"
+
+
+def _holds_package_code(module):
+    """Whether the LLVM ``module`` defines or calls any of this package's functions."""
+    return any(fn.name.startswith(_SYMBOL_PREFIX) for fn in module.functions)
+
+
+#: Qualified names of the kernels compiled for numba's own target machine, not
+#: :func:`package_machine` (:func:`narrow_vectors`).
+_NARROW = set()
+
+
+def narrow_vectors(dispatcher):
+    """``dispatcher`` (a kernel), optimised and compiled for numba's own target machine,
+    whose tuning may prefer 256-bit vectors to the 512-bit ones of :func:`package_machine`.
+    For kernels that ran slower with the wider vectors (the fit's loss pass). Its callees are
+    compiled as they are anywhere else."""
+    _NARROW.add(dispatcher.py_func.__qualname__)
+    return dispatcher
+
+
+#: Target machines for this package's code, by (numba codegen, optimisation level).
+_MACHINES = {}
+
+
+def package_machine(codegen_, opt):
+    """The LLVM target machine this package's kernels are optimised and compiled for: numba's
+    own (its CPU, features, relocation and code models) at optimisation level ``opt``, except
+    that on a CPU with AVX-512 it prefers 512-bit vectors.
+
+    LLVM tunes Intel's server cores (``prefer-256-bit``, Skylake-SP and later) to vectorise
+    with 256-bit vectors, since the first AVX-512 cores slowed their clocks for wider ones.
+    On an Intel ``emeraldrapids`` host, alternating runs: the fit's loss-and-gradient pass
+    (``bench_fit.py``, two threads) went from 228-263 to 321-342 M samples/s; evaluation,
+    renders and compile times were the same within noise, and so were the render's bytes.
+    The loss pass alone ran about a tenth slower with the wider vectors, so its kernels keep
+    numba's machine (:func:`narrow_vectors`). Only this package's code is affected: numba's
+    machine, which compiles everything else in the process, is left as it is."""
+    key = (id(codegen_), opt)
+    machine = _MACHINES.get(key)
+    if machine is None:
+        options = {"opt": opt}
+        codegen_._customize_tm_options(options)  # numba's CPU, features, relocation
+        if "+avx512f" in options.get("features", "").split(","):
+            options["features"] += ",-prefer-256-bit"
+        machine = _MACHINES[key] = ll.Target.from_triple(
+            ll.get_process_triple()).create_target_machine(**options)
+    return machine
+
+
+class _tuned:
+    """Within the block, numba's pass builders for ``codegen_`` take :func:`package_machine`
+    (LLVM's vectorisers read the preferred vector width from it). Compiling holds numba's
+    compiler lock, so no other thread builds passes meanwhile."""
+
+    def __init__(self, codegen_):
+        self.codegen = codegen_
+
+    def __enter__(self):
+        self.saved = self.codegen._tm
+        self.codegen._tm = package_machine(self.codegen, numba.config.OPT)
+
+    def __exit__(self, *exc):
+        self.codegen._tm = self.saved
+
+
+def _tuned_function_passes(codegen_library):
+    """Patch numba's ``CPUCodeLibrary`` so that the function passes over a module of this
+    package's code run for :func:`package_machine` (its module passes do, in
+    :func:`_private_copies`, and its machine code is generated for it, in
+    :func:`_package_machine_code`)."""
+    optimize_functions = codegen_library._optimize_functions
+
+    def optimize_functions_tuned(library, ll_module):
+        if not _holds_package_code(ll_module) or library.name in _NARROW:
+            optimize_functions(library, ll_module)
+            return
+        with _tuned(library.codegen):
+            optimize_functions(library, ll_module)
+
+    codegen_library._optimize_functions = optimize_functions_tuned
+    codegen_library._brdf_tuned_function_passes = True
+
+
 if not getattr(codegen.CPUCodeLibrary, "_brdf_private_copies", False):
     _private_copies(codegen.CPUCodeLibrary)
+if not getattr(codegen.CPUCodeLibrary, "_brdf_tuned_function_passes", False):
+    _tuned_function_passes(codegen.CPUCodeLibrary)
 
 
 class _InlineCompiler(compiler.Compiler):
@@ -90,41 +182,45 @@ class _InlineCompiler(compiler.Compiler):
         return super().compile_extra(func)
 
 
-def _inline_machine_code_unoptimised(codegen_library):
-    """Patch numba's ``JITCodeLibrary`` so that an :func:`inline_kernel`'s own machine code is
-    generated without optimisation (LLVM's ``-O0`` code generator, on a copy of its module).
+def _package_machine_code(codegen_library):
+    """Patch numba's ``JITCodeLibrary`` so that the machine code of a library of this package's
+    code is generated by :func:`package_machine`, and an :func:`inline_kernel`'s without
+    optimisation (LLVM's ``-O0`` code generator, on a copy of its module).
 
-    Callers never run that code: they link the kernel's optimised IR and inline it, and only
-    Python calls it (tests). Generating it with numba's optimising code generator took a
+    Callers never run an inline kernel's own code: they link its optimised IR and inline it,
+    and only Python calls it (tests). Generating it with the optimising code generator took a
     fifth of LLVM's code generation when every kernel compiled in one process. The module
-    callers link is left as it was optimised (the optimising code generator rewrote it in
-    place), and the machine code is cached as numba caches any."""
+    callers link is left as it was optimised, and the machine code is cached as numba caches
+    any: numba's engine loads the object its cache hook hands it instead of compiling."""
     finalize_specific = codegen_library._finalize_specific
-    machines = {}
 
-    def finalize_inline_unoptimised(library):
-        if not getattr(library, "brdf_inline", False) or library._compiled_object is not None:
+    def finalize_package_code(library):
+        # numba's engine takes an object only from a library that caches its object (as all
+        # kernels' do), and one loaded from the cache has its object already
+        inline = getattr(library, "brdf_inline", False)
+        if (not library._object_caching_enabled or library._compiled_object is not None
+                or not (inline or _holds_package_code(library._final_module))):
             finalize_specific(library)
             return
-        machine = machines.get(id(library.codegen))
-        if machine is None:
-            options = {"opt": 0}
-            library.codegen._customize_tm_options(options)  # numba's CPU, features, relocation
-            machine = machines[id(library.codegen)] = ll.Target.from_triple(
-                ll.get_process_triple()).create_target_machine(**options)
-        code = machine.emit_object(library._final_module.clone())
-        # numba's engine loads the object the cache hook hands it instead of compiling; the
-        # hook forgets it, and numba's cache saves it afterwards
+        if library.name in _NARROW:
+            finalize_specific(library)
+            return
+        if inline:
+            code = package_machine(library.codegen, 0).emit_object(library._final_module.clone())
+        else:
+            code = package_machine(library.codegen, numba.config.OPT).emit_object(
+                library._final_module)
+        # the hook forgets the object it hands over, and numba's cache saves it afterwards
         library._compiled_object = code
         finalize_specific(library)
         library._compiled_object, library._compiled = code, True
 
-    codegen_library._finalize_specific = finalize_inline_unoptimised
-    codegen_library._brdf_inline_unoptimised = True
+    codegen_library._finalize_specific = finalize_package_code
+    codegen_library._brdf_package_machine_code = True
 
 
-if not getattr(codegen.JITCodeLibrary, "_brdf_inline_unoptimised", False):
-    _inline_machine_code_unoptimised(codegen.JITCodeLibrary)
+if not getattr(codegen.JITCodeLibrary, "_brdf_package_machine_code", False):
+    _package_machine_code(codegen.JITCodeLibrary)
 
 
 def _without_literals(dispatcher, keep=()):
@@ -237,7 +333,7 @@ def inline_kernel(fn):
     with them, 11.7 s without).
 
     The kernel's own machine code, which only Python calls, is generated without optimisation
-    (:func:`_inline_machine_code_unoptimised`)."""
+    (:func:`_package_machine_code`)."""
     return _always_inlined(_borrowing(_without_literals(quick_loading(numba.njit(
         fn, **_OPTIONS, _nrt=False, pipeline_class=_InlineCompiler)), keep=_LITERAL)))
 

@@ -7,11 +7,13 @@ specialisation each. Threads share work through a queue (``in_threads``, ``share
 """
 
 import itertools
+import shutil
 import subprocess
 import sys
 import threading
 import time
 
+import llvmlite.binding
 import numba
 import numpy as np
 import pytest
@@ -206,7 +208,7 @@ print(json.dumps({"values": values,
 
 def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
     """An inline kernel's own machine code comes from LLVM's unoptimised code generator
-    (``_inline_machine_code_unoptimised``); it must still run from Python, be saved to the
+    (``_package_machine_code``); it must still run from Python, be saved to the
     disk cache, and load from it both to run and to be linked into a caller compiled later."""
     import json
     import os
@@ -227,6 +229,59 @@ def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
     assert warm["values"] == {"caller": 10.0, "inline": 7.0}
     assert warm["compiled"] == {"inline": 0, "caller": 1}
     assert warm["loaded"] == {"inline": 1, "caller": 0}
+
+
+_WIDE = """
+import json, re, subprocess, sys, tempfile
+import numpy as np
+from numba.core.registry import cpu_target
+import brdf
+from brdf.models import _kernels
+
+codegen = cpu_target.target_context.codegen()
+machine = codegen._tm
+wi = np.tile([0.36, 0.48, 0.8], (64, 1))
+brdf.parse("ggx(alpha=0.3)").eval(wi, wi)
+
+
+def roots(library):
+    with tempfile.NamedTemporaryFile(suffix=".o") as f:
+        f.write(library._compiled_object)
+        f.flush()
+        asm = subprocess.run(["objdump", "-d", "--no-show-raw-insn", f.name],
+                             capture_output=True, text=True, check=True).stdout
+    return sorted(set(re.findall(r"vsqrtpd\\s+%([xyz]mm)", asm)))
+
+
+print(json.dumps({"eval": [roots(c.library)
+                           for c in _kernels.eval_array.dispatcher.overloads.values()],
+                  "numba_machine_kept": codegen._tm is machine,
+                  "numba_features": codegen._tm_features}))
+"""
+
+
+@pytest.mark.skipif("+avx512f" not in llvmlite.binding.get_host_cpu_features().flatten()
+                    .split(",") or numba.config.CPU_FEATURES is not None
+                    or shutil.which("objdump") is None,
+                    reason="a CPU without AVX-512 (or features set by hand), or no objdump")
+def test_package_kernels_vectorise_with_512_bit_vectors(tmp_path):
+    """On a CPU with AVX-512, the package's kernels are optimised and compiled for 512-bit
+    vectors (:func:`brdf._jit.package_machine`): the GGX evaluation's loop takes its square
+    roots eight at a time, in zmm registers (LLVM's tuning of Intel's server cores gave it
+    ymm ones, four at a time). numba's own target machine, which compiles every other
+    function in the process, is left as it was."""
+    import json
+    import os
+    # an empty cache of its own: the kernels compile, and their machine code is at hand
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
+           "NUMBA_CACHE_LOCATOR_CLASSES": "UserProvidedCacheLocator"}
+    done = subprocess.run([sys.executable, "-c", _WIDE], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out["eval"] and all(r == ["zmm"] for r in out["eval"]), out
+    assert out["numba_machine_kept"]
+    assert "prefer-256-bit" not in out["numba_features"]
 
 
 @nogil_kernel

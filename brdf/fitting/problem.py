@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import fetch_add, inline_kernel, kernel, nogil_kernel, share_queue, sparse_product
+from .._jit import (fetch_add, inline_kernel, kernel, narrow_vectors, nogil_kernel, share_queue,
+                     sparse_product)
 from ..errors import InputError, ParameterError
 from ..models import _kinds as K
 from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
@@ -558,6 +559,7 @@ def _loss_sums(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, wei
                 scale, target, weight, offset, block, out)
 
 
+@narrow_vectors
 @nogil_kernel
 def _sum_loss_blocks(kinds, offs, params, lobes, lobe, nch, wi, wo, scale, target, weight,
                      offset, block, out, queue):
@@ -831,6 +833,7 @@ _FOLD_LOSS_ARGS = (
 FOLD_LOSS_SOURCE = _define_rows(_FOLD_LOSS_ARGS)
 
 
+@narrow_vectors
 @kernel
 def _fold_loss_blocks(kinds, offs, params, lobe, wi, wo, scale, target, weight, out):
     """``out[j, c]``: the terms of one block (the rows of ``wi``) for each parameter row j of
