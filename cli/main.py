@@ -8,6 +8,7 @@ one line on stderr, ``brdf-fit: error: ...``; ``--debug`` prints the traceback b
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import textwrap
@@ -381,7 +382,14 @@ def _load_plugins(args):
 
 def run():
     """The ``brdf-fit`` console script: :func:`main` on the process arguments; the process then
-    ends without the interpreter's teardown of its modules (:mod:`brdf_cli.process_exit`)."""
+    ends without the interpreter's teardown of its modules (:mod:`brdf_cli.process_exit`).
+
+    OpenBLAS, numpy's BLAS, starts a thread per core when numpy is imported, and each of them
+    busy-waits 2^28 cycles for work before it sleeps (0.09-0.1 s of a core in every command,
+    which makes only small BLAS calls, if any). Unless the environment says otherwise, the
+    command's threads wait 2^4 cycles (``OPENBLAS_THREAD_TIMEOUT``, read when numpy loads
+    OpenBLAS), and a BLAS call wakes them."""
+    os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
     status = main()
     process_exit.arm(status)
     return status

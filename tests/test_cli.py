@@ -255,6 +255,41 @@ def _exit_of(code):
                           timeout=60)
 
 
+_BLAS_THREADS = """
+import atexit, os, sys, time
+import brdf_cli.main
+
+def report():
+    time.sleep(0.3)  # longer than OpenBLAS's default busy wait (2^28 cycles)
+    ticks = 0
+    for task in os.listdir("/proc/self/task"):
+        if int(task) != os.getpid():
+            with open(f"/proc/self/task/{task}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            ticks += int(fields[11]) + int(fields[12])  # user and system clock ticks
+    print(os.environ.get("OPENBLAS_THREAD_TIMEOUT"), ticks, file=sys.stderr)
+
+atexit.register(report)
+sys.argv = ["brdf-fit", "models"]
+brdf_cli.main.run()
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="no /proc")
+def test_the_script_keeps_numpys_blas_threads_from_busy_waiting():
+    # the command's other threads (OpenBLAS's, started with numpy) spend no CPU time after
+    # numpy's import; without the setting they spun 0.09-0.1 s each; the user's value stays
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    proc = subprocess.run([sys.executable, "-c", _BLAS_THREADS], env=env, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    timeout, ticks = proc.stderr.split()[-2:]
+    assert timeout == "4" and int(ticks) <= 2, proc.stderr
+    proc = subprocess.run([sys.executable, "-c", _BLAS_THREADS], capture_output=True, text=True,
+                          env={**env, "OPENBLAS_THREAD_TIMEOUT": "28"}, timeout=120)
+    assert proc.returncode == 0 and proc.stderr.split()[-2] == "28", proc.stderr
+
+
 def test_process_exit_runs_after_every_other_exit_handler():
     # armed, the status is the command's and other modules' exit handlers still run first
     proc = _exit_of("import atexit, sys, brdf_cli, logging\n"
