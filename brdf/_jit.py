@@ -13,6 +13,7 @@ numba internals, so ``pyproject.toml`` pins numba to the minor release
 ``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
 """
 
+import contextlib
 import functools
 import inspect
 import threading
@@ -88,7 +89,8 @@ def _holds_package_code(module):
 
 
 #: Qualified names of the kernels compiled for numba's own target machine, not
-#: :func:`package_machine` (:func:`narrow_vectors`).
+#: :func:`package_machine` (:func:`narrow_vectors`); numba names a kernel's code library by
+#: its name qualified within its module.
 _NARROW = set()
 
 
@@ -130,20 +132,17 @@ def package_machine(codegen_, opt):
     return machine
 
 
-class _tuned:
+@contextlib.contextmanager
+def _tuned(codegen_):
     """Within the block, numba's pass builders for ``codegen_`` take :func:`package_machine`
     (LLVM's vectorisers read the preferred vector width from it). Compiling holds numba's
     compiler lock, so no other thread builds passes meanwhile."""
-
-    def __init__(self, codegen_):
-        self.codegen = codegen_
-
-    def __enter__(self):
-        self.saved = self.codegen._tm
-        self.codegen._tm = package_machine(self.codegen, numba.config.OPT)
-
-    def __exit__(self, *exc):
-        self.codegen._tm = self.saved
+    saved = codegen_._tm
+    codegen_._tm = package_machine(codegen_, numba.config.OPT)
+    try:
+        yield
+    finally:
+        codegen_._tm = saved
 
 
 def _tuned_function_passes(codegen_library):
@@ -199,10 +198,8 @@ def _package_machine_code(codegen_library):
         # kernels' do), and one loaded from the cache has its object already
         inline = getattr(library, "brdf_inline", False)
         if (not library._object_caching_enabled or library._compiled_object is not None
-                or not (inline or _holds_package_code(library._final_module))):
-            finalize_specific(library)
-            return
-        if library.name in _NARROW:
+                or not (inline or _holds_package_code(library._final_module))
+                or library.name in _NARROW):
             finalize_specific(library)
             return
         if inline:
