@@ -61,18 +61,12 @@ def _private_copies(codegen_library):
         module = library._final_module
         linked = [fn for fn in module.functions
                   if not fn.is_declaration and own is not None and fn.name not in own]
-        if not _holds_package_code(module):
-            optimize(library)
-            return
-        for fn in linked:
-            fn.linkage = ll.Linkage.internal
-            if fn.name in _ALWAYS_INLINE:
-                fn.add_function_attribute("alwaysinline")
-        if library.name in _NARROW:
-            optimize(library)
-            return
-        with _tuned(library.codegen):
-            optimize(library)
+        if _holds_package_code(module):
+            for fn in linked:
+                fn.linkage = ll.Linkage.internal
+                if fn.name in _ALWAYS_INLINE:
+                    fn.add_function_attribute("alwaysinline")
+        optimize(library)
 
     codegen_library.finalize = finalize_owning
     codegen_library._optimize_final_module = optimize_private
@@ -132,41 +126,53 @@ def package_machine(codegen_, opt):
     return machine
 
 
+def _wide(library, module):
+    """Whether ``library``, whose LLVM module is ``module``, is optimised and compiled for
+    :func:`package_machine`: it holds this package's code and is no :func:`narrow_vectors`
+    kernel's."""
+    return _holds_package_code(module) and library.name not in _NARROW
+
+
 @contextlib.contextmanager
-def _tuned(codegen_):
-    """Within the block, numba's pass builders for ``codegen_`` take :func:`package_machine`
-    (LLVM's vectorisers read the preferred vector width from it). Compiling holds numba's
-    compiler lock, so no other thread builds passes meanwhile."""
+def _tuned(library, module):
+    """Within the block, numba's pass builders take :func:`package_machine` if ``library``
+    is :func:`_wide` (LLVM's vectorisers read the preferred vector width from the machine).
+    Compiling holds numba's compiler lock, so no other thread builds passes meanwhile."""
+    codegen_ = library.codegen
     saved = codegen_._tm
-    codegen_._tm = package_machine(codegen_, numba.config.OPT)
+    if _wide(library, module):
+        codegen_._tm = package_machine(codegen_, numba.config.OPT)
     try:
         yield
     finally:
         codegen_._tm = saved
 
 
-def _tuned_function_passes(codegen_library):
-    """Patch numba's ``CPUCodeLibrary`` so that the function passes over a module of this
-    package's code run for :func:`package_machine` (its module passes do, in
-    :func:`_private_copies`, and its machine code is generated for it, in
-    :func:`_package_machine_code`)."""
+def _tuned_passes(codegen_library):
+    """Patch numba's ``CPUCodeLibrary`` so that the function and module passes over a
+    :func:`_wide` library run for :func:`package_machine` (its machine code is generated for
+    it, in :func:`_package_machine_code`)."""
     optimize_functions = codegen_library._optimize_functions
+    optimize_final_module = codegen_library._optimize_final_module
 
     def optimize_functions_tuned(library, ll_module):
-        if not _holds_package_code(ll_module) or library.name in _NARROW:
+        with _tuned(library, ll_module):
             optimize_functions(library, ll_module)
-            return
-        with _tuned(library.codegen):
-            optimize_functions(library, ll_module)
+
+    def optimize_final_module_tuned(library):
+        with _tuned(library, library._final_module):
+            optimize_final_module(library)
 
     codegen_library._optimize_functions = optimize_functions_tuned
-    codegen_library._brdf_tuned_function_passes = True
+    codegen_library._optimize_final_module = optimize_final_module_tuned
+    codegen_library._brdf_tuned_passes = True
 
 
+# the module passes' patch wraps the private copies', whose linkage it keeps
 if not getattr(codegen.CPUCodeLibrary, "_brdf_private_copies", False):
     _private_copies(codegen.CPUCodeLibrary)
-if not getattr(codegen.CPUCodeLibrary, "_brdf_tuned_function_passes", False):
-    _tuned_function_passes(codegen.CPUCodeLibrary)
+if not getattr(codegen.CPUCodeLibrary, "_brdf_tuned_passes", False):
+    _tuned_passes(codegen.CPUCodeLibrary)
 
 
 class _InlineCompiler(compiler.Compiler):
@@ -198,8 +204,7 @@ def _package_machine_code(codegen_library):
         # kernels' do), and one loaded from the cache has its object already
         inline = getattr(library, "brdf_inline", False)
         if (not library._object_caching_enabled or library._compiled_object is not None
-                or not (inline or _holds_package_code(library._final_module))
-                or library.name in _NARROW):
+                or not (inline or _wide(library, library._final_module))):
             finalize_specific(library)
             return
         if inline:
