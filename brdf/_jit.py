@@ -25,7 +25,7 @@ from numba.core import cgutils, codegen, compiler, datamodel, types
 from numba.extending import intrinsic
 
 from ._kernel_cache import quick_loading
-from ._threads import thread_count
+from ._threads import ROWS_PER_THREAD, thread_count
 
 FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 #: numba's options for every kernel. Without a C-callable wrapper (``no_cfunc_wrapper``: the
@@ -362,19 +362,21 @@ def _always_inlined(dispatcher):
     return dispatcher
 
 
-def threaded_kernel(*rows):
+def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
     call it on equal chunks of those rows at once, one per thread of
-    :func:`brdf._threads.thread_count` (which :func:`brdf._threads.serial_below` lowers to one):
-    a ``prange`` loop's speed without numba's parallel compile (its outlined loop body
-    and gufunc wrapper: a third of a first ``check``'s compile). ``rows`` names the arguments
-    whose first axis is the loop's; one whose first axis has another length (an empty
-    placeholder), or None, goes whole to every chunk. The call returns the sum of the chunks'
-    results (None for a kernel without one); each row's values do not depend on the chunks."""
+    :func:`brdf._threads.thread_count` (which :func:`brdf._threads.serial_below` lowers to one),
+    but no more threads than there are ``rows_per_thread`` rows: a ``prange`` loop's speed
+    without numba's parallel compile (its outlined loop body and gufunc wrapper: a third of a
+    first ``check``'s compile), and without waking threads for less work than the waking
+    costs. ``rows`` names the arguments whose first axis is the loop's; one whose first axis
+    has another length (an empty placeholder), or None, goes whole to every chunk. The call
+    returns the sum of the chunks' results (None for a kernel without one); each row's values
+    do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
         dispatcher = _inputs_as_writable(quick_loading(numba.njit(fn, **_OPTIONS, nogil=True)))
-        return RowThreads(dispatcher, tuple(names.index(r) for r in rows))
+        return RowThreads(dispatcher, tuple(names.index(r) for r in rows), rows_per_thread)
     return compile_rows
 
 
@@ -382,8 +384,8 @@ class RowThreads:
     """A :func:`threaded_kernel`: called like its dispatcher (``dispatcher``), whose other
     attributes it passes on."""
 
-    def __init__(self, dispatcher, rows):
-        self.dispatcher, self.rows = dispatcher, rows
+    def __init__(self, dispatcher, rows, rows_per_thread):
+        self.dispatcher, self.rows, self.rows_per_thread = dispatcher, rows, rows_per_thread
         functools.update_wrapper(self, dispatcher.py_func)
 
     def __getattr__(self, name):
@@ -391,7 +393,7 @@ class RowThreads:
 
     def __call__(self, *args):
         n = args[self.rows[0]].shape[0]
-        threads = min(thread_count(), n)
+        threads = min(thread_count(), n // self.rows_per_thread)
         if threads <= 1:
             return self.dispatcher(*args)
         # chunk t ends at ceil(n t / threads): rows dealt out to the threads like cards

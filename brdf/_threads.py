@@ -12,6 +12,10 @@ import threading
 
 #: Kernel calls on fewer directions than this run on one thread (see :func:`serial_below`).
 SERIAL_SAMPLES = 1 << 15
+#: The fewest rows an array kernel gives each thread (``brdf._jit.threaded_kernel``), unless
+#: its rows cost far more than a model's evaluation: with fewer, waking the threads costs
+#: more than they save (see :func:`serial_below`).
+ROWS_PER_THREAD = SERIAL_SAMPLES // 2
 
 _set = threading.local()
 

@@ -400,7 +400,7 @@ def test_a_view_with_a_constant_last_axis_counts_its_reference():
     assert done.returncode == 0 and done.stdout.split() == ["10000.0"], done.stderr[-2000:]
 
 
-@threaded_kernel("a", "out")
+@threaded_kernel("a", "out", rows_per_thread=1)
 def _rows_doubled(a, scale, out):
     n = 0
     for k in range(a.shape[0]):
@@ -425,16 +425,37 @@ def test_a_threaded_kernel_splits_its_rows_and_sums_its_results(n):
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
+def test_a_threaded_kernel_wakes_no_thread_for_fewer_rows_than_it_gives_one(monkeypatch):
+    """Below two threads' worth of rows the call runs on the caller's thread alone (the pool
+    is not asked), whatever the thread count; from there on it is split."""
+    from brdf import _jit
+    asked = []
+    pool = _jit._row_pool()
+    monkeypatch.setattr(_jit, "_row_pool", lambda: asked.append(1) or pool)
+    kernel = threaded_kernel("a", "out", rows_per_thread=4)(_rows_doubled.py_func)
+    with using_threads(2):
+        for n, split in [(1, False), (7, False), (8, True), (9, True)]:
+            a, out = np.linspace(-1.0, 2.0, n), np.empty(n)
+            asked.clear()
+            assert kernel(a, np.array([0.5]), out) == np.sum(a < 0.0)
+            np.testing.assert_array_equal(out, 2.0 * a + 0.5)
+            assert bool(asked) == split, n
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
 def test_the_model_kernels_give_the_same_bytes_on_one_thread_and_two():
     """eval, pdf, sample and albedo (threaded kernels) of a mixture, on an odd number of
-    rows: each row's values do not depend on which thread computed them."""
+    rows, enough for two threads: each row's values do not depend on which thread computed
+    them."""
     import brdf
+    from brdf._threads import ROWS_PER_THREAD
     from brdf.geometry import directions_from_degrees
     m = brdf.parse("lambert(albedo=[0.5,0.4,0.3]) + ggx(alpha=0.2, fresnel=schlick(f0=0.04))")
     rng = np.random.default_rng(0)
-    t, p = rng.uniform(0.0, 89.0, (2, 1001)), rng.uniform(0.0, 360.0, (2, 1001))
+    n = 2 * ROWS_PER_THREAD + 1
+    t, p = rng.uniform(0.0, 89.0, (2, n)), rng.uniform(0.0, 360.0, (2, n))
     wi, wo = directions_from_degrees(t[0], p[0]), directions_from_degrees(t[1], p[1])
-    u = rng.random((1001, 2))
+    u = rng.random((n, 2))
 
     def run(threads):
         with using_threads(threads):

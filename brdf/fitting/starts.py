@@ -253,8 +253,7 @@ def _lobe_values(lobe, trial, samples, nch, unit):
     if unit:
         changes.update(lobe.unit(trial))
     built = lobe.lobe.replace(**changes)
-    with serial_below(len(samples.wi)):
-        f = np.asarray(built.eval(samples.wi, samples.wo), dtype=float)
+    f = np.asarray(built.eval(samples.wi, samples.wo), dtype=float)
     return np.broadcast_to(f.reshape(len(samples.wi), -1), (len(samples.wi), nch))
 
 

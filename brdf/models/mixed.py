@@ -15,7 +15,6 @@ Hints change the variance of the estimates, never their expected values.
 
 import numpy as np
 
-from .._threads import serial_below
 from ..geometry import direction_array, flat_pairs
 from .custom import CustomModel
 
@@ -54,8 +53,7 @@ def eval(model, wi, wo):
     out = np.zeros((len(wi), model.channels))
     builtin, custom = _parts(model)
     if builtin is not None:
-        with serial_below(len(wi)):
-            _add(out, builtin.eval(wi, wo))
+        _add(out, builtin.eval(wi, wo))
     for lobe in custom:
         _add(out, lobe._eval_flat(wi, wo))
     return out.reshape(shape + (model.channels,))
@@ -96,10 +94,9 @@ def _pdf(model, wi, wo, picks):
     if picks is None:
         return np.asarray(model.lobes[0].pdf(wi, wo), dtype=float)
     out = np.zeros(len(wi))
-    with serial_below(len(wi)):
-        for lobe, w in zip(model.lobes, picks):
-            if not lobe.delta:
-                out += np.where(w > 0.0, w * lobe.pdf(wi, wo), 0.0)
+    for lobe, w in zip(model.lobes, picks):
+        if not lobe.delta:
+            out += np.where(w > 0.0, w * lobe.pdf(wi, wo), 0.0)
     return out
 
 
@@ -129,8 +126,7 @@ def sample_weighted(model, wi, u):
         idx = np.flatnonzero(chosen == l)
         if not len(idx):
             continue
-        with serial_below(len(idx)):
-            lwo, lp, lw = lobe.sample_weighted(wi[idx], np.stack([rescaled[idx], u[idx, 1]], -1))
+        lwo, lp, lw = lobe.sample_weighted(wi[idx], np.stack([rescaled[idx], u[idx, 1]], -1))
         wo[idx] = lwo
         ok = (lp > 0.0) & (w[idx] > 0.0)
         if lobe.delta:
