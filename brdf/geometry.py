@@ -267,13 +267,13 @@ def direction_array(x, name, screen=True):
     and the first offending row if it holds NaN or infinite values or a vector whose length is
     further than :data:`UNIT_TOL` from 1 (a zero vector, an unnormalised one).
 
-    With ``screen`` False, the lengths of a large array (the ones a compiled loop would screen)
-    are left unchecked: for a caller whose kernel screens the rows as it reads them (squared
-    lengths in :data:`UNIT_SQ`) and calls this function again to refuse them."""
+    With ``screen`` False, the lengths are left unchecked: for a caller whose kernel screens
+    the rows as it reads them (squared lengths in :data:`UNIT_SQ`) and calls this function
+    again to refuse them."""
     arr = real_array(x, name)
     if arr.ndim == 0 or arr.shape[-1] != 3:
         raise InputError(f"{name} must be shaped (..., 3), got shape {arr.shape}")
-    if arr.size >= 3 * _COMPILED_ROWS and not screen:
+    if not screen:
         return arr
     if arr.size >= 3 * _COMPILED_ROWS and arr.flags.c_contiguous:
         from ._directions import first_outside
@@ -320,9 +320,14 @@ def flat_pairs(wi, wo, screen=True):
     wi = direction_array(wi, "wi", screen)
     wo = direction_array(wo, "wo", screen)
     shape = broadcast_shape(wi, wo, "wi", "wo")
-    wi = np.ascontiguousarray(np.broadcast_to(wi, shape + (3,)).reshape(-1, 3))
-    wo = np.ascontiguousarray(np.broadcast_to(wo, shape + (3,)).reshape(-1, 3))
-    return wi, wo, shape
+    return _flat_rows(wi, shape), _flat_rows(wo, shape), shape
+
+
+def _flat_rows(v, shape):
+    """``v`` broadcast to ``shape + (3,)`` as C-contiguous rows (n, 3)."""
+    if v.shape[:-1] != shape:
+        v = np.broadcast_to(v, shape + (3,))
+    return np.ascontiguousarray(v.reshape(-1, 3))
 
 
 def broadcast_shape(a, b, name_a, name_b):
