@@ -17,6 +17,10 @@ separable Smith masking, which is our default):
   evaluation with numpy arrays in and out, set by memory traffic and page faults.
 
 Ratios are printed against each baseline; the values of all three are compared too.
+
+Then the cost of a call on few pairs (``--small``, default 16 and 1,305: a plot's or a table
+row's worth), where fixed costs dominate: ``Model.eval`` against Mitsuba 3 with its BSDFs built
+once (numpy in and out, as above) and against the numpy formula, microseconds per call.
 """
 
 import argparse
@@ -65,6 +69,32 @@ def memory_bound(wi, wo):
     return out
 
 
+def small_calls(model, sizes, repeats):
+    """Per-call seconds ``(size, ours, mitsuba or None, numpy)``, best of ``repeats`` rounds of
+    calls on ``size`` random pairs."""
+    try:
+        sys.path.insert(0, str(Path(__file__).parent))
+        import mitsuba_baseline as mb
+        mi = mb.setup_llvm()
+        bsdfs = mb.make_bsdfs(mi, ALBEDO, ALPHA, KS)
+
+        def mitsuba(wi, wo):
+            return np.array(mb.eval_drjit(mi, bsdfs, *mb.to_drjit(mi, wi, wo)), np.float64).T
+    except (RuntimeError, ImportError):
+        mitsuba = None
+    rows = []
+    for size in sizes:
+        wi, wo = random_pairs(size, seed=1)
+        calls = max(3, 20_000 // size)
+
+        def per_call(fn):
+            return best_time(lambda: [fn(wi, wo) for _ in range(calls)], repeats)[0] / calls
+
+        rows.append((size, per_call(model.eval), mitsuba and per_call(mitsuba),
+                     per_call(numpy_lambert_ggx)))
+    return rows
+
+
 def mitsuba_rows(wi, wo, repeats):
     sys.path.insert(0, str(Path(__file__).parent))
     import mitsuba_baseline as mb
@@ -81,6 +111,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", type=int, default=1_458_000)
     parser.add_argument("--repeats", type=int, default=15)
+    parser.add_argument("--small", type=int, nargs="*", default=[16, 1305],
+                        help="pair counts of the per-call timings (none: skip them)")
     args = parser.parse_args()
 
     wi, wo = random_pairs(args.pairs)
@@ -109,6 +141,15 @@ def main():
     for name, values in checks:
         rel = np.max(np.abs(ours - values) / np.maximum(np.abs(values), 1e-6))
         print(f"max relative difference to {name}: {rel:.2e}")
+    if args.small:
+        print(f"\nper call, best of {args.repeats} rounds")
+        print(f"{'pairs':>7s} {'brdf us':>9s} {'mitsuba us':>11s} {'numpy us':>9s} "
+              f"{'vs mitsuba':>11s} {'vs numpy':>9s}")
+        for size, ours_s, mitsuba_s, numpy_s in small_calls(model, args.small, args.repeats):
+            mi_us = f"{mitsuba_s * 1e6:11.1f}" if mitsuba_s else f"{'-':>11s}"
+            mi_ratio = f"{mitsuba_s / ours_s:10.2f}x" if mitsuba_s else f"{'-':>11s}"
+            print(f"{size:7d} {ours_s * 1e6:9.1f} {mi_us} {numpy_s * 1e6:9.1f} {mi_ratio} "
+                  f"{numpy_s / ours_s:8.2f}x")
 
 
 if __name__ == "__main__":
