@@ -408,7 +408,8 @@ def grid_coordinates(ix, iy, iz, ox, oy, oz):
     theta_d = math.atan2(sin_d, dz)
     phi_d = math.atan2(dy, dx) if sin_d >= POLE_SINE else 0.0
     # reciprocity: swapping wi and wo adds pi to phi_d, so phi_d is periodic over pi
-    phi_d = phi_d % math.pi
+    # phi_d % pi without fmod's call: atan2 lies in [-pi, pi] (pi itself folds to 0 below)
+    phi_d = phi_d + math.pi if phi_d < 0.0 else phi_d
     u = math.sqrt(theta_h / _HALF_PI) * SHAPE[0]
     v = theta_d / _HALF_PI * SHAPE[1]
     w = phi_d / math.pi * SHAPE[2]
