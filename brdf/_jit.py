@@ -16,6 +16,7 @@ numba internals, so ``pyproject.toml`` pins numba to the minor release
 import contextlib
 import functools
 import inspect
+import itertools
 import threading
 
 import llvmlite.binding as ll
@@ -362,21 +363,23 @@ def _always_inlined(dispatcher):
     return dispatcher
 
 
-def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD):
+def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD, chunks_per_thread=8):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
     call it on equal chunks of those rows at once, one per thread of
     :func:`brdf._threads.thread_count` (which :func:`brdf._threads.serial_below` lowers to one),
     but no more threads than there are ``rows_per_thread`` rows: a ``prange`` loop's speed
     without numba's parallel compile (its outlined loop body and gufunc wrapper: a third of a
     first ``check``'s compile), and without waking threads for less work than the waking
-    costs. ``rows`` names the arguments whose first axis is the loop's; one whose first axis
+    costs. The rows go in up to ``chunks_per_thread`` chunks per thread, which the threads
+    take in turn as they finish one (1: one chunk each). ``rows`` names the arguments whose first axis is the loop's; one whose first axis
     has another length (an empty placeholder), or None, goes whole to every chunk. The call
     returns the sum of the chunks' results (None for a kernel without one); each row's values
     do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
         dispatcher = _inputs_as_writable(quick_loading(numba.njit(fn, **_OPTIONS, nogil=True)))
-        return RowThreads(dispatcher, tuple(names.index(r) for r in rows), rows_per_thread)
+        return RowThreads(dispatcher, tuple(names.index(r) for r in rows), rows_per_thread,
+                          chunks_per_thread)
     return compile_rows
 
 
@@ -384,8 +387,9 @@ class RowThreads:
     """A :func:`threaded_kernel`: called like its dispatcher (``dispatcher``), whose other
     attributes it passes on."""
 
-    def __init__(self, dispatcher, rows, rows_per_thread):
-        self.dispatcher, self.rows, self.rows_per_thread = dispatcher, rows, rows_per_thread
+    def __init__(self, dispatcher, rows, rows_per_thread, chunks_per_thread):
+        self.dispatcher, self.rows = dispatcher, rows
+        self.rows_per_thread, self.chunks_per_thread = rows_per_thread, chunks_per_thread
         functools.update_wrapper(self, dispatcher.py_func)
 
     def __getattr__(self, name):
@@ -396,18 +400,33 @@ class RowThreads:
         threads = min(thread_count(), n // self.rows_per_thread)
         if threads <= 1:
             return self.dispatcher(*args)
-        # chunk t ends at ceil(n t / threads): rows dealt out to the threads like cards
-        # (Model.albedo's) and sorted by hand then make exactly one hand per chunk
-        cuts = [-(-n * t // threads) for t in range(threads + 1)]
+        # several chunks per thread, each thread taking the next as it finishes one: equal
+        # shares waited on the slower core of a shared host, and on the woken thread's start
+        chunks = min(n // self.rows_per_thread, threads * self.chunks_per_thread)
+        # chunk t ends at ceil(n t / chunks): rows dealt out to the threads like cards
+        # (Model.albedo's) and sorted by hand then make exactly one hand per chunk when there
+        # is one chunk per thread
+        cuts = [-(-n * t // chunks) for t in range(chunks + 1)]
+        results = [None] * chunks
+        taken = itertools.count()  # next() of a count is atomic under the GIL
 
-        def chunk(t):
-            a, b = cuts[t], cuts[t + 1]
-            return self.dispatcher(*(arg[a:b] if i in self.rows and arg is not None
-                                     and arg.shape[0] == n else arg
-                                     for i, arg in enumerate(args)))
+        def work():
+            while True:
+                t = next(taken)
+                if t >= chunks:
+                    return
+                a, b = cuts[t], cuts[t + 1]
+                results[t] = self.dispatcher(*(arg[a:b] if i in self.rows and arg is not None
+                                               and arg.shape[0] == n else arg
+                                               for i, arg in enumerate(args)))
 
-        others = [_row_pool().submit(chunk, t) for t in range(1, threads)]
-        results = [chunk(0)] + [f.result() for f in others]
+        others = [_row_pool().submit(work) for _ in range(threads - 1)]
+        try:
+            work()
+        finally:
+            for f in others:
+                if not f.cancel():  # started: wait for its chunks
+                    f.result()
         return None if results[0] is None else sum(results)
 
 

@@ -443,6 +443,37 @@ def test_a_threaded_kernel_wakes_no_thread_for_fewer_rows_than_it_gives_one(monk
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
+def test_a_threaded_kernel_does_not_wait_for_a_busy_pool():
+    """The calling thread takes every chunk the pool's threads have not started: with all of
+    them busy, the call returns (equal shares waited for the pool), with the same values."""
+    from brdf import _jit
+    pool = _jit._row_pool()
+    release = threading.Event()
+    busy = [pool.submit(release.wait, 60) for _ in range(pool._max_workers)]
+    try:
+        a, out = np.linspace(-1.0, 2.0, 1001), np.full(1001, np.nan)
+        done = []
+
+        def call():
+            with using_threads(2):  # this thread's count
+                done.append(_rows_doubled_in_chunks(a, np.array([0.5]), out))
+
+        caller = threading.Thread(target=call)
+        caller.start()
+        caller.join(30)
+        assert done == [np.sum(a < 0.0)], "the call waited for the busy pool"
+        np.testing.assert_array_equal(out, 2.0 * a + 0.5)
+    finally:
+        release.set()
+        for f in busy:
+            f.result()
+
+
+_rows_doubled_in_chunks = threaded_kernel("a", "out", rows_per_thread=1, chunks_per_thread=4)(
+    _rows_doubled.py_func)
+
+
+@pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")
 def test_the_model_kernels_give_the_same_bytes_on_one_thread_and_two():
     """eval, pdf, sample and albedo (threaded kernels) of a mixture, on an odd number of
     rows, enough for two threads: each row's values do not depend on which thread computed

@@ -1231,7 +1231,8 @@ def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err,
     return n
 
 
-@threaded_kernel("wi", "out", "err", "panels", "grad", rows_per_thread=1)  # a row: a cubature
+# a row is a whole cubature; Model.albedo deals the rows out to one chunk per thread
+@threaded_kernel("wi", "out", "err", "panels", "grad", rows_per_thread=1, chunks_per_thread=1)
 def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels, grad):
     """Directional albedo per incident direction: delta lobes exactly, others adaptively.
 
