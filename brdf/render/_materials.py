@@ -107,8 +107,12 @@ def _tab_pdf(cdf, vx, vy, vz, lx, ly, lz):
     if lz <= 0.0:
         return 0.0
     b = _tab_bin(vz)
-    # l's azimuth from v's in [0, 2 pi): one arctangent of the angle between their projections
-    phi = math.atan2(vx * ly - vy * lx, vx * lx + vy * ly)
+    # l's azimuth from v's in [0, 2 pi): one arctangent of the angle between their
+    # projections; v at the pole has azimuth 0, as the sampler's atan2(0, 0) gives it
+    if vx == 0.0 and vy == 0.0:
+        phi = math.atan2(ly, lx)
+    else:
+        phi = math.atan2(vx * ly - vy * lx, vx * lx + vy * ly)
     phi = phi + 2.0 * math.pi if phi < 0.0 else phi
     it = min(int(math.acos(min(lz, 1.0)) / (0.5 * math.pi) * TAB_THETA), TAB_THETA - 1)
     ip = min(int(phi / (2.0 * math.pi) * TAB_PHI), TAB_PHI - 1)
