@@ -365,16 +365,18 @@ def _always_inlined(dispatcher):
 
 def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD, chunks_per_thread=8):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
-    call it on equal chunks of those rows at once, one per thread of
-    :func:`brdf._threads.thread_count` (which :func:`brdf._threads.serial_below` lowers to one),
-    but no more threads than there are ``rows_per_thread`` rows: a ``prange`` loop's speed
+    call it on chunks of those rows in the threads of :func:`brdf._threads.thread_count`
+    (which :func:`brdf._threads.serial_below` lowers to one): a ``prange`` loop's speed
     without numba's parallel compile (its outlined loop body and gufunc wrapper: a third of a
-    first ``check``'s compile), and without waking threads for less work than the waking
-    costs. The rows go in up to ``chunks_per_thread`` chunks per thread, which the threads
-    take in turn as they finish one (1: one chunk each). ``rows`` names the arguments whose first axis is the loop's; one whose first axis
-    has another length (an empty placeholder), or None, goes whole to every chunk. The call
-    returns the sum of the chunks' results (None for a kernel without one); each row's values
-    do not depend on the chunks."""
+    first ``check``'s compile).
+
+    A call gives each thread it uses at least ``rows_per_thread`` rows (waking a thread costs
+    more than a few thousand evaluations), and cuts its rows into up to ``chunks_per_thread``
+    chunks per thread, which the threads, the caller's included, take in turn as they finish
+    one (1: one chunk each). ``rows`` names the arguments whose first axis is the loop's; one
+    whose first axis has another length (an empty placeholder), or None, goes whole to every
+    chunk. The call returns the sum of the chunks' results in chunk order (None for a kernel
+    without one); each row's values do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
         dispatcher = _inputs_as_writable(quick_loading(numba.njit(fn, **_OPTIONS, nogil=True)))
