@@ -422,13 +422,7 @@ class RowThreads:
                                                and arg.shape[0] == n else arg
                                                for i, arg in enumerate(args)))
 
-        others = [_row_pool().submit(work) for _ in range(threads - 1)]
-        try:
-            work()
-        finally:
-            for f in others:
-                if not f.cancel():  # started: wait for its chunks
-                    f.result()
+        in_threads(threads, work, short=True)  # what the pool has not started is dropped
         return None if results[0] is None else sum(results)
 
 
