@@ -69,19 +69,24 @@ def memory_bound(wi, wo):
     return out
 
 
-def small_calls(model, sizes, repeats):
+def mitsuba_baseline():
+    """``(mitsuba_baseline module, Mitsuba set up for llvm_ad_rgb)``; RuntimeError or ImportError
+    where Mitsuba 3 is missing."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    import mitsuba_baseline as mb
+    return mb, mb.setup_llvm()
+
+
+def small_calls(model, sizes, repeats, mitsuba):
     """Per-call seconds ``(size, ours, mitsuba or None, numpy)``, best of ``repeats`` rounds of
-    calls on ``size`` random pairs."""
-    try:
-        sys.path.insert(0, str(Path(__file__).parent))
-        import mitsuba_baseline as mb
-        mi = mb.setup_llvm()
+    calls on ``size`` random pairs; ``mitsuba``: :func:`mitsuba_baseline`'s pair, or None."""
+    theirs = None
+    if mitsuba is not None:
+        mb, mi = mitsuba
         bsdfs = mb.make_bsdfs(mi, ALBEDO, ALPHA, KS)
 
-        def mitsuba(wi, wo):
-            return np.array(mb.eval_drjit(mi, bsdfs, *mb.to_drjit(mi, wi, wo)), np.float64).T
-    except (RuntimeError, ImportError):
-        mitsuba = None
+        def theirs(wi, wo):
+            return mb.eval_lambert_ggx(mi, wi, wo, ALBEDO, ALPHA, KS, bsdfs=bsdfs)
     rows = []
     for size in sizes:
         wi, wo = random_pairs(size, seed=1)
@@ -90,15 +95,13 @@ def small_calls(model, sizes, repeats):
         def per_call(fn):
             return best_time(lambda: [fn(wi, wo) for _ in range(calls)], repeats)[0] / calls
 
-        rows.append((size, per_call(model.eval), mitsuba and per_call(mitsuba),
+        rows.append((size, per_call(model.eval), theirs and per_call(theirs),
                      per_call(numpy_lambert_ggx)))
     return rows
 
 
-def mitsuba_rows(wi, wo, repeats):
-    sys.path.insert(0, str(Path(__file__).parent))
-    import mitsuba_baseline as mb
-    mi = mb.setup_llvm()
+def mitsuba_rows(mitsuba, wi, wo, repeats):
+    mb, mi = mitsuba
     ref = mb.eval_lambert_ggx(mi, wi, wo, ALBEDO, ALPHA, KS)
     e2e = best_time(lambda: mb.eval_lambert_ggx(mi, wi, wo, ALBEDO, ALPHA, KS), repeats)
     kernel = mb.time_eval(mi, wi, wo, ALBEDO, ALPHA, KS, repeats=repeats)
@@ -125,10 +128,12 @@ def main():
              *best_time(lambda: memory_bound(wi, wo), args.repeats))]
     checks = [("numpy", numpy_lambert_ggx(wi, wo))]
     try:
-        ref, extra = mitsuba_rows(wi, wo, args.repeats)
+        mitsuba = mitsuba_baseline()
+        ref, extra = mitsuba_rows(mitsuba, wi, wo, args.repeats)
         rows += extra
         checks.append(("mitsuba", ref))
     except (RuntimeError, ImportError) as exc:
+        mitsuba = None
         print(f"mitsuba baseline skipped: {exc}")
 
     print(f"lambert + ggx, RGB, {args.pairs:,} random direction pairs, best of {args.repeats}")
@@ -145,7 +150,8 @@ def main():
         print(f"\nper call, best of {args.repeats} rounds")
         print(f"{'pairs':>7s} {'brdf us':>9s} {'mitsuba us':>11s} {'numpy us':>9s} "
               f"{'vs mitsuba':>11s} {'vs numpy':>9s}")
-        for size, ours_s, mitsuba_s, numpy_s in small_calls(model, args.small, args.repeats):
+        for size, ours_s, mitsuba_s, numpy_s in small_calls(model, args.small, args.repeats,
+                                                            mitsuba):
             mi_us = f"{mitsuba_s * 1e6:11.1f}" if mitsuba_s else f"{'-':>11s}"
             mi_ratio = f"{mitsuba_s / ours_s:10.2f}x" if mitsuba_s else f"{'-':>11s}"
             print(f"{size:7d} {ours_s * 1e6:9.1f} {mi_us} {numpy_s * 1e6:9.1f} {mi_ratio} "

@@ -186,7 +186,7 @@ def eval_drjit(mi, bsdfs, si, wo):
     return f_cos / wo.z
 
 
-def eval_lambert_ggx(mi, wi, wo, albedo, alpha, ks):
+def eval_lambert_ggx(mi, wi, wo, albedo, alpha, ks, bsdfs=None):
     """Evaluate ``albedo / pi + ks * D * G1(wi) * G1(wo) / (4 cos_i cos_o)``.
 
     Parameters
@@ -202,6 +202,9 @@ def eval_lambert_ggx(mi, wi, wo, albedo, alpha, ks):
         Isotropic GGX roughness.
     ks : float or array_like, shape (3,)
         Specular reflectance.
+    bsdfs : tuple of mitsuba.BSDF, optional
+        The BSDFs of :func:`make_bsdfs` for these parameters, built once by
+        a caller that evaluates them many times; built here by default.
 
     Returns
     -------
@@ -210,7 +213,9 @@ def eval_lambert_ggx(mi, wi, wo, albedo, alpha, ks):
         where either direction is below the surface.
     """
     si, wo_dr = to_drjit(mi, wi, wo)
-    f = eval_drjit(mi, make_bsdfs(mi, albedo, alpha, ks), si, wo_dr)
+    if bsdfs is None:
+        bsdfs = make_bsdfs(mi, albedo, alpha, ks)
+    f = eval_drjit(mi, bsdfs, si, wo_dr)
     return np.array(f, dtype=np.float64).T
 
 
