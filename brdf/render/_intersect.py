@@ -38,7 +38,11 @@ lanes, where they part ways.
 import math
 from collections import namedtuple
 
-from .._jit import inline_kernel, kernel
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
+
+from .._jit import FASTMATH, inline_kernel, kernel
 
 SPHERE, QUAD, TRIANGLE = 0, 1, 2
 #: rows of ``planes``: normal, corner, dual vectors q1 and q2, triangle flag, sphere flag
@@ -61,6 +65,8 @@ DEPTH = 62
 #: On the 40,400-triangle mesh of ``bench_render.py``, one thread, its camera, bounce and
 #: shadow rays (ALONE 32) took 109, 182 and 250 ns at 4; 122, 202 and 276 at 8; 114, 187 and
 #: 260 at 16 (whose node test runs in AVX-512 lanes: 16 boxes in 15.6 ns, as 4 in scalar code).
+#: With every width's node test in SIMD lanes (:func:`_wide_entries`), 4 still beat 8: 115-129,
+#: 218-253 and 225-272 ns against 122-165, 237-313 and 252-321 (four alternating pairs).
 WIDTH = 4
 #: Half the traversal's stack (callers pass 2 STACK integers): the packet's stack holds at most
 #: DEPTH + 2 nodes, a ray's on top of it WIDTH - 1 per wide level and one more.
@@ -216,19 +222,24 @@ def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz
                         if any_hit:
                             return best, found
             continue
-        _wide_entries(wbox, code, ox, oy, oz, rx, ry, rz, best, dist)
-        if mask != -1:
-            for s in range(WIDTH):
-                if not (mask >> s) & 1:
-                    dist[s] = math.inf
-            mask = -1
+        entered = _wide_entries(wbox, code, ox, oy, oz, rx, ry, rz, best, dist) & mask
+        mask = -1
+        if entered == 0:
+            continue
+        if entered & (entered - 1) == 0:
+            # one child (the usual case): no order to find
+            s = _lowest_bit(entered)
+            c = wchild[code, 0, s]
+            stack[top] = c if c >= 0 else -(code * WIDTH + s) - 1
+            top += 1
+            continue
         # the entered children, farthest first (insertion sort on their entry distances;
         # equal distances keep the slots' order, the lower slot visited first)
         low = top
-        for s in range(WIDTH):
+        while entered:
+            s = _lowest_bit(entered)
+            entered &= entered - 1
             e = dist[s]
-            if e == math.inf:
-                continue
             i = top
             while i > low and dist[stack[i - 1]] <= e:
                 stack[i] = stack[i - 1]
@@ -242,17 +253,84 @@ def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz
     return best, found
 
 
-@kernel
-def _wide_entries(wbox, n, ox, oy, oz, rx, ry, rz, tmax, dist):
+@intrinsic
+def _wide_entries(typingctx, wbox, n, ox, oy, oz, rx, ry, rz, tmax, dist):
     """Entry distance of the ray into each of wide node n's WIDTH child boxes within (0, tmax)
-    into ``dist[:WIDTH]``, inf where it misses (:func:`_slab`). One branch-free loop: LLVM
-    unrolls it into scalar code at WIDTH 4 and 8, and runs it in AVX-512 lanes at 16 (see
-    :data:`WIDTH`)."""
-    for s in range(WIDTH):
-        corners = ((float(wbox[n, 0, s]), float(wbox[n, 1, s]), float(wbox[n, 2, s])),
-                   (float(wbox[n, 3, s]), float(wbox[n, 4, s]), float(wbox[n, 5, s])))
-        near, enters = _slab(corners, ox, oy, oz, rx, ry, rz, tmax)
-        dist[s] = near if enters else math.inf
+    into ``dist[:WIDTH]``, inf where it misses, and the mask of the children entered (bit s:
+    ``dist[s] < inf``): :func:`_slab` on all WIDTH children at once, in one SIMD register per
+    coordinate (``wbox`` float32 C (nw, 6, WIDTH), ``dist`` float64).
+
+    Written as LLVM vector code: the scalar loop was unrolled into one child after another,
+    whose stores into ``dist`` LLVM could not move past the next child's loads (the arrays
+    might overlap), so it never ran in SIMD lanes, and it was three fifths of a single ray's
+    traversal. The operations are _slab's, in its order and with numba's min and max (``b <
+    a ? b : a``), so the distances are the same to the bit."""
+    if not (isinstance(wbox, types.Array) and wbox.dtype == types.float32 and wbox.ndim == 3
+            and wbox.layout == "C" and isinstance(dist, types.Array)
+            and dist.dtype == types.float64 and dist.layout == "C"):
+        return None
+
+    def codegen(context, builder, signature, args):
+        f64 = ir.DoubleType()
+        vec = ir.VectorType(f64, WIDTH)
+        index = ir.IntType(32)
+        zeros = ir.Constant(ir.VectorType(index, WIDTH), [0] * WIDTH)
+
+        def splat(x, ty):
+            x = context.cast(builder, x, ty, types.float64)
+            one = builder.insert_element(ir.Constant(vec, ir.Undefined), x, index(0))
+            return builder.shuffle_vector(one, ir.Constant(vec, ir.Undefined), zeros)
+
+        def lesser(a, b):  # numba's min(a, b)
+            return builder.select(builder.fcmp_ordered("<", b, a), b, a)
+
+        def greater(a, b):  # numba's max(a, b)
+            return builder.select(builder.fcmp_ordered(">", b, a), b, a)
+
+        boxes = context.make_array(signature.args[0])(context, builder, args[0])
+        node = context.cast(builder, args[1], signature.args[1], types.intp)
+        rows = []
+        for r in range(6):
+            at = cgutils.get_item_pointer(context, builder, signature.args[0], boxes,
+                                          [node, context.get_constant(types.intp, r),
+                                           context.get_constant(types.intp, 0)])
+            row = builder.load(builder.bitcast(at, ir.VectorType(ir.FloatType(),
+                                                                 WIDTH).as_pointer()), align=4)
+            rows.append(builder.fpext(row, vec))
+        o = [splat(args[k], signature.args[k]) for k in (2, 3, 4)]
+        r = [splat(args[k], signature.args[k]) for k in (5, 6, 7)]
+        flags = sorted(FASTMATH)
+        t0 = [builder.fmul(builder.fsub(rows[a], o[a], flags=flags), r[a], flags=flags)
+              for a in range(3)]
+        t1 = [builder.fmul(builder.fsub(rows[3 + a], o[a], flags=flags), r[a], flags=flags)
+              for a in range(3)]
+        zero = ir.Constant(vec, [0.0] * WIDTH)
+        near = greater(greater(lesser(t0[0], t1[0]), lesser(t0[1], t1[1])),
+                       greater(lesser(t0[2], t1[2]), zero))
+        far = lesser(lesser(greater(t0[0], t1[0]), greater(t0[1], t1[1])),
+                     lesser(greater(t0[2], t1[2]), splat(args[8], signature.args[8])))
+        slack = builder.fmul(far, ir.Constant(vec, [1.0 + 1e-12] * WIDTH), flags=flags)
+        enters = builder.fcmp_ordered("<=", near, slack)
+        inf = ir.Constant(vec, [math.inf] * WIDTH)
+        entry = builder.select(enters, near, inf)
+        out = context.make_array(signature.args[9])(context, builder, args[9])
+        builder.store(entry, builder.bitcast(out.data, vec.as_pointer()), align=8)
+        bits = builder.bitcast(builder.fcmp_ordered("!=", entry, inf), ir.IntType(WIDTH))
+        return builder.zext(bits, ir.IntType(64))
+
+    return types.int64(wbox, n, ox, oy, oz, rx, ry, rz, tmax, dist), codegen
+
+
+@intrinsic
+def _lowest_bit(typingctx, x):
+    """The index of the lowest set bit of the int64 ``x`` (not 0): one instruction."""
+    if x != types.int64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.cttz(args[0], ir.Constant(ir.IntType(1), 1))
+
+    return types.int64(x), codegen
 
 
 @inline_kernel
