@@ -1,10 +1,12 @@
 """The BVH builder: the tree's invariants (a partition of the primitives, boxes that hold what
 is under them, splits between sorted centroids, small leaves), the root's split against a plain
-SAH costing of the same candidates, and closest and any hits through it (the SIMD leaf test)
-against a plain numpy test of every primitive."""
+SAH costing of the same candidates, closest and any hits through it (the SIMD leaf test)
+against a plain numpy test of every primitive, and the wide nodes' SIMD box test against the
+scalar slab test."""
 
 import math
 
+import numba
 import numpy as np
 import pytest
 
@@ -173,6 +175,55 @@ def test_the_wide_tree_holds_each_binary_subtree_in_boxes_rounded_outward(n, tie
                 assert np.all(lo32 <= b[0]) and np.all(hi32 >= b[1])
                 assert np.all(b[0] - lo32 <= 2 ** -23 * np.abs(b[0]))
                 assert np.all(hi32 - b[1] <= 2 ** -23 * np.abs(b[1]))
+
+
+@numba.njit
+def _wide_entries(wbox, n, o, r, tmax, dist):
+    return X._wide_entries(wbox, n, o[0], o[1], o[2], r[0], r[1], r[2], tmax, dist)
+
+
+@numba.njit
+def _slab_entries(wbox, n, o, r, tmax, dist):
+    for s in range(wbox.shape[2]):
+        corners = ((float(wbox[n, 0, s]), float(wbox[n, 1, s]), float(wbox[n, 2, s])),
+                   (float(wbox[n, 3, s]), float(wbox[n, 4, s]), float(wbox[n, 5, s])))
+        near, enters = X._slab(corners, o[0], o[1], o[2], r[0], r[1], r[2], tmax)
+        dist[s] = near if enters else math.inf
+
+
+def test_a_wide_nodes_simd_box_test_is_the_scalar_slab_test_to_the_bit():
+    """The SIMD test of a wide node's children (an LLVM vector intrinsic) gives the scalar
+    slab test's entry distances bit for bit, and its mask marks the children entered, also
+    where the scalar test meets NaN: rays parallel to an axis (reciprocal +-inf) starting on
+    a box's face, flat boxes, empty slots (+inf boxes), a finite tmax."""
+    rng = np.random.default_rng(11)
+    nodes = 400
+    lo = rng.uniform(-1, 1, (nodes, 3, X.WIDTH))
+    hi = lo + rng.uniform(0, 1, (nodes, 3, X.WIDTH)) * (rng.random((nodes, 3, X.WIDTH)) < 0.8)
+    wbox = np.concatenate([lo, hi], axis=1).astype(np.float32)
+    wbox[rng.random(nodes) < 0.1, :, 0] = np.inf                     # empty slots
+    got, want = np.empty(X.WIDTH), np.empty(X.WIDTH)
+    entered = 0
+    for k in range(4000):
+        n = k % nodes
+        o = rng.uniform(-2, 2, 3)
+        # towards a child's centre (most enter it), or anywhere
+        d = (0.5 * (lo[n, :, k % X.WIDTH] + hi[n, :, k % X.WIDTH]) - o if k % 4 == 1
+             else rng.normal(size=3))
+        d[rng.random(3) < 0.25] = 0.0                                  # parallel to axes
+        d /= max(np.linalg.norm(d), 1e-300)
+        with np.errstate(divide="ignore"):
+            r = 1.0 / d
+        if k % 3 == 0:                                                 # on a face or an edge
+            axes = rng.random(3) < 0.5
+            o[axes] = wbox[n, np.flatnonzero(axes) + 3 * (k % 2), 0]
+        tmax = math.inf if k % 2 else rng.uniform(0, 3)
+        mask = _wide_entries(wbox, n, o, r, tmax, got)
+        _slab_entries(wbox, n, o, r, tmax, want)
+        assert got.tobytes() == want.tobytes()
+        assert mask == sum(1 << s for s in range(X.WIDTH) if want[s] != math.inf)
+        entered += mask != 0
+    assert 500 < entered < 3500      # both outcomes, many times each
 
 
 def _reference_hit(shapes, o, d):
