@@ -51,7 +51,8 @@ from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHER
                          plane_coordinates, trace_packet)
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light,
                       sample_light)
-from ..models._kernels import DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient
+from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
+                               with_last_axis)
 from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
@@ -139,11 +140,13 @@ def _frame(sx, sy, sz, tx, ty, tz):
     d = tx * sx + ty * sy + tz * sz
     tx, ty, tz = tx - d * sx, ty - d * sy, tz - d * sz
     n = math.sqrt(tx * tx + ty * ty + tz * tz)
-    if n < 1e-9:
-        t, b = sampling.basis_from_axis(sx, sy, sz)
-        return t[0], t[1], t[2], b[0], b[1], b[2]
-    tx, ty, tz = tx / n, ty / n, tz / n
-    return tx, ty, tz, sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
+    t, b = sampling.basis_from_axis(sx, sy, sz)
+    # selects, not a branch: its caller's loop runs in SIMD lanes
+    along = n < 1e-9
+    tx, ty, tz = (t[0] if along else tx / n), (t[1] if along else ty / n), (t[2] if along
+                                                                            else tz / n)
+    return (tx, ty, tz, b[0] if along else sy * tz - sz * ty,
+            b[1] if along else sz * tx - sx * tz, b[2] if along else sx * ty - sy * tx)
 
 
 @kernel
@@ -226,11 +229,12 @@ INT_LAYOUT = (
     ("END", 1, "whether the path ends at this vertex"),
     ("ENTERS", 1, "tracing's work space: whether a ray enters a node"),
     ("CHOSEN", 1, "shading's work space: the lobe each path sampled"),
+    ("FRAMED", 1, "the vertex's tangent (row A) is its frame's already (a quad's)"),
     ("COUNT", 1, "the lengths of the lists of lanes"),
     ("LIST", 5, "the lists of lanes of a shading batch (see bsdf_shade)"),
 )
 (ALIVE, PIXEL_X, PIXEL_Y, DEPTH_, SPECULAR, HIT, MAT, MATERIAL, NEE, BLOCKER, END, ENTERS,
- CHOSEN, COUNT, LIST), INT_ROWS = _offsets(INT_LAYOUT)
+ CHOSEN, FRAMED, COUNT, LIST), INT_ROWS = _offsets(INT_LAYOUT)
 #: rows of ``sh``, block by block
 SHADOW_LAYOUT = (
     ("RAY", RAY_ROWS, "the shadow ray, from Q towards the light"),
@@ -418,21 +422,11 @@ def _vertices(opts, geo, mats, lights, p):
         nx, ny, nz = side * nx, side * ny, side * nz
         side = -1.0 if sx * nx + sy * ny + sz * nz < 0.0 else 1.0
         sx, sy, sz = side * sx, side * sy, side * sz
-        if kind == QUAD:
-            # its tangent is of unit length and orthogonal to s = +-n: Gram-Schmidt's square
-            # root and division were the longest wait of the vertex pass (sampled with perf)
-            ax, ay, az = tx, ty, tz
-            bx, by, bz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
-        else:
-            ax, ay, az, bx, by, bz = _frame(sx, sy, sz, tx, ty, tz)
         fl[N, j], fl[N + 1, j], fl[N + 2, j] = nx, ny, nz
         fl[S, j], fl[S + 1, j], fl[S + 2, j] = sx, sy, sz
-        fl[A, j], fl[A + 1, j], fl[A + 2, j] = ax, ay, az
-        fl[B, j], fl[B + 1, j], fl[B + 2, j] = bx, by, bz
-        for s in (PAIR, DRAW):
-            q[s, GIVEN, j] = -(dx * ax + dy * ay + dz * az)
-            q[s, GIVEN + 1, j] = -(dx * bx + dy * by + dz * bz)
-            q[s, GIVEN + 2, j] = -(dx * sx + dy * sy + dz * sz)
+        # the frame is completed by _frames, for every lane at once
+        fl[A, j], fl[A + 1, j], fl[A + 2, j] = tx, ty, tz
+        il[FRAMED, j] = kind == QUAD
         material_params(mats, m, u, v, lp[j])
         il[MAT, j], il[MATERIAL, j] = mats.mint[m, SHARE], m
         qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
@@ -450,14 +444,50 @@ def _vertices(opts, geo, mats, lights, p):
                     sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
                     sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
                     sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
-                    q[PAIR, DRAWN, j] = ldx * ax + ldy * ay + ldz * az
-                    q[PAIR, DRAWN + 1, j] = ldx * bx + ldy * by + ldz * bz
-                    q[PAIR, DRAWN + 2, j] = ldx * sx + ldy * sy + ldz * sz
+                    # in world space until _frames turns it into the local frame
+                    q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j] = (
+                        ldx, ldy, ldz)
                     for c in range(3):
                         fl[LI + c, j] = li[c]
                     fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
         shading += 1
+    _frames(p)
     return shading, shadows
+
+
+@kernel
+def _frames(p):
+    """Complete every lane's shading frame and turn its directions into it: from the shading
+    normal (row S) and tangent (row A) that :func:`_vertices` leaves, the tangent made
+    orthonormal to the normal (:func:`_frame`; a quad's is already, FRAMED) and the bitangent
+    (rows A, B); the direction towards the viewer in both query sets, and the light sample's
+    direction (set PAIR), in that frame. One pass over the packet without branches, which LLVM
+    runs in SIMD lanes: lane by lane, Gram-Schmidt's square root and division were the longest
+    wait of the vertex pass (sampled with perf). Lanes that do not shade get numbers that
+    nothing reads."""
+    # rows of a constant length, so that LLVM sees that one row's stores do not reach another's
+    fl, il = with_last_axis(p.fl, ROW), with_last_axis(p.il, ROW)
+    qp, qd = with_last_axis(p.q[PAIR], ROW), with_last_axis(p.q[DRAW], ROW)
+    for j in range(PACKET):
+        sx, sy, sz = fl[S, j], fl[S + 1, j], fl[S + 2, j]
+        tx, ty, tz = fl[A, j], fl[A + 1, j], fl[A + 2, j]
+        gx, gy, gz, hx, hy, hz = _frame(sx, sy, sz, tx, ty, tz)
+        framed = il[FRAMED, j] != 0
+        ax, ay, az = (tx if framed else gx), (ty if framed else gy), (tz if framed else gz)
+        cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
+        bx, by, bz = (cx if framed else hx), (cy if framed else hy), (cz if framed else hz)
+        fl[A, j], fl[A + 1, j], fl[A + 2, j] = ax, ay, az
+        fl[B, j], fl[B + 1, j], fl[B + 2, j] = bx, by, bz
+        dx, dy, dz = fl[D, j], fl[D + 1, j], fl[D + 2, j]
+        vx = -(dx * ax + dy * ay + dz * az)
+        vy = -(dx * bx + dy * by + dz * bz)
+        vz = -(dx * sx + dy * sy + dz * sz)
+        qp[GIVEN, j], qp[GIVEN + 1, j], qp[GIVEN + 2, j] = vx, vy, vz
+        qd[GIVEN, j], qd[GIVEN + 1, j], qd[GIVEN + 2, j] = vx, vy, vz
+        lx, ly, lz = qp[DRAWN, j], qp[DRAWN + 1, j], qp[DRAWN + 2, j]
+        qp[DRAWN, j] = lx * ax + ly * ay + lz * az
+        qp[DRAWN + 1, j] = lx * bx + ly * by + lz * bz
+        qp[DRAWN + 2, j] = lx * sx + ly * sy + lz * sz
 
 
 @kernel
