@@ -134,19 +134,21 @@ def _surface(geo, i, a, b, px, py, pz, uv):
 
 
 @kernel
-def _frame(sx, sy, sz, tx, ty, tz):
-    """Orthonormal tangent and bitangent about the shading normal s, the tangent following t
+def _frame(sx, sy, sz, tx, ty, tz, framed):
+    """Orthonormal tangent and bitangent about the shading normal s: the tangent t itself where
+    ``framed`` (a quad's, of unit length and orthogonal to s already), else following t
     (Gram-Schmidt), any tangent where t is parallel to s."""
     d = tx * sx + ty * sy + tz * sz
-    tx, ty, tz = tx - d * sx, ty - d * sy, tz - d * sz
-    n = math.sqrt(tx * tx + ty * ty + tz * tz)
+    gx, gy, gz = tx - d * sx, ty - d * sy, tz - d * sz
+    n = math.sqrt(gx * gx + gy * gy + gz * gz)
     t, b = sampling.basis_from_axis(sx, sy, sz)
-    # selects, not a branch: its caller's loop runs in SIMD lanes
-    along = n < 1e-9
-    tx, ty, tz = (t[0] if along else tx / n), (t[1] if along else ty / n), (t[2] if along
-                                                                            else tz / n)
-    return (tx, ty, tz, b[0] if along else sy * tz - sz * ty,
-            b[1] if along else sz * tx - sx * tz, b[2] if along else sx * ty - sy * tx)
+    # selects, not branches: the caller's loop runs in SIMD lanes
+    along = (n < 1e-9) & (not framed)
+    ax = tx if framed else (t[0] if along else gx / n)
+    ay = ty if framed else (t[1] if along else gy / n)
+    az = tz if framed else (t[2] if along else gz / n)
+    return (ax, ay, az, b[0] if along else sy * az - sz * ay,
+            b[1] if along else sz * ax - sx * az, b[2] if along else sx * ay - sy * ax)
 
 
 @kernel
@@ -459,7 +461,7 @@ def _vertices(opts, geo, mats, lights, p):
 def _frames(p):
     """Complete every lane's shading frame and turn its directions into it: from the shading
     normal (row S) and tangent (row A) that :func:`_vertices` leaves, the tangent made
-    orthonormal to the normal (:func:`_frame`; a quad's is already, FRAMED) and the bitangent
+    orthonormal to the normal (:func:`_frame`; a quad's is already: FRAMED) and the bitangent
     (rows A, B); the direction towards the viewer in both query sets, and the light sample's
     direction (set PAIR), in that frame. One pass over the packet without branches, which LLVM
     runs in SIMD lanes: lane by lane, Gram-Schmidt's square root and division were the longest
@@ -470,12 +472,8 @@ def _frames(p):
     qp, qd = with_last_axis(p.q[PAIR], ROW), with_last_axis(p.q[DRAW], ROW)
     for j in range(PACKET):
         sx, sy, sz = fl[S, j], fl[S + 1, j], fl[S + 2, j]
-        tx, ty, tz = fl[A, j], fl[A + 1, j], fl[A + 2, j]
-        gx, gy, gz, hx, hy, hz = _frame(sx, sy, sz, tx, ty, tz)
-        framed = il[FRAMED, j] != 0
-        ax, ay, az = (tx if framed else gx), (ty if framed else gy), (tz if framed else gz)
-        cx, cy, cz = sy * tz - sz * ty, sz * tx - sx * tz, sx * ty - sy * tx
-        bx, by, bz = (cx if framed else hx), (cy if framed else hy), (cz if framed else hz)
+        ax, ay, az, bx, by, bz = _frame(sx, sy, sz, fl[A, j], fl[A + 1, j], fl[A + 2, j],
+                                        il[FRAMED, j] != 0)
         fl[A, j], fl[A + 1, j], fl[A + 2, j] = ax, ay, az
         fl[B, j], fl[B + 1, j], fl[B + 2, j] = bx, by, bz
         dx, dy, dz = fl[D, j], fl[D + 1, j], fl[D + 2, j]

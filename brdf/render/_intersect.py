@@ -178,22 +178,15 @@ def _slab(corners, ox, oy, oz, rx, ry, rz, tmax):
 
 
 @inline_kernel
-def _lesser(a, b):
-    return a if a < b else b
-
-
-@inline_kernel
 def _least(d):
     """The least of the leaf pass's LANES (16) distances ``d``, -1 if the block holds a sphere,
     halved pairwise, so that the minima of a halving run side by side: the scan of the slots
     in order, a chain of 15 comparisons each waiting on the last, was a tenth of the mesh's
     traversal."""
-    m0, m1, m2, m3 = _lesser(d[0], d[8]), _lesser(d[1], d[9]), _lesser(d[2], d[10]), _lesser(
-        d[3], d[11])
-    m4, m5, m6, m7 = _lesser(d[4], d[12]), _lesser(d[5], d[13]), _lesser(d[6], d[14]), _lesser(
-        d[7], d[15])
-    m0, m1, m2, m3 = _lesser(m0, m4), _lesser(m1, m5), _lesser(m2, m6), _lesser(m3, m7)
-    return _lesser(_lesser(m0, m2), _lesser(m1, m3))
+    m0, m1, m2, m3 = min(d[0], d[8]), min(d[1], d[9]), min(d[2], d[10]), min(d[3], d[11])
+    m4, m5, m6, m7 = min(d[4], d[12]), min(d[5], d[13]), min(d[6], d[14]), min(d[7], d[15])
+    m0, m1, m2, m3 = min(m0, m4), min(m1, m5), min(m2, m6), min(m3, m7)
+    return min(min(m0, m2), min(m1, m3))
 
 
 @inline_kernel
