@@ -85,28 +85,32 @@ class BeckmannModel(Microfacet):
 
 @kernel
 def ndf_d(dist, ax, ay, hx, hy, hz):
-    """Normal distribution D(h) in 1/sr (integral of D cos = 1) and its logarithmic partial
-    derivatives in alpha_x and alpha_y as numerators over a common denominator,
-    ``(D, n_x, n_y, den)`` with d ln D / d alpha = n / den, so that a caller adding other
-    logarithmic derivatives divides once for all of them; h need not be normalised."""
+    """Normal distribution D(h) in 1/sr (integral of D cos = 1) as a fraction, with its
+    logarithmic partial derivatives in alpha_x and alpha_y as numerators over a common
+    denominator: ``(D numerator, D denominator, n_x, n_y, den)`` with d ln D / d alpha =
+    n / den, so that a caller multiplying D into other fractions divides once for all of them
+    (divisions bound the evaluation); h need not be normalised."""
     hh = hx * hx + hy * hy + hz * hz
     sx = hx / ax
     sy = hy / ay
     if dist is GGX:
         t = sx * sx + sy * sy + hz * hz
-        d = hh * hh / (math.pi * ax * ay * t * t)  # Heitz 2014, eq. 85
+        # Heitz 2014, eq. 85: D = |h|^4 / (pi ax ay t^2)
         # eq. 85 differentiated: d ln D / d alpha_x = (4 s_x^2 / t - 1) / alpha_x
-        return d, (4.0 * sx * sx - t) / ax, (4.0 * sy * sy - t) / ay, t
+        return (hh * hh, math.pi * ax * ay * t * t, (4.0 * sx * sx - t) / ax,
+                (4.0 * sy * sy - t) / ay, t)
     hz2 = hz * hz
-    d = math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh / (math.pi * ax * ay * hz2 * hz2)  # eq. 84
+    # eq. 84: D = exp(-(s_x^2 + s_y^2) / h_z^2) |h|^4 / (pi ax ay h_z^4)
     # eq. 84 differentiated: d ln D / d alpha_x = (2 s_x^2 / h_z^2 - 1) / alpha_x
-    return d, (2.0 * sx * sx - hz2) / ax, (2.0 * sy * sy - hz2) / ay, hz2
+    return (math.exp(-(sx * sx + sy * sy) / hz2) * hh * hh, math.pi * ax * ay * hz2 * hz2,
+            (2.0 * sx * sx - hz2) / ax, (2.0 * sy * sy - hz2) / ay, hz2)
 
 
 @kernel
 def ndf(dist, ax, ay, hx, hy, hz):
     """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
-    return ndf_d(dist, ax, ay, hx, hy, hz)[0]
+    num, den, _, _, _ = ndf_d(dist, ax, ay, hx, hy, hz)
+    return num / den
 
 
 @kernel
@@ -151,9 +155,9 @@ def g1(dist, ax, ay, x, y, z):
 
 @kernel
 def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
-    """G2 / (4 cos_i cos_o) for directions above the horizon, and its logarithmic partial
-    derivatives in alpha_x and alpha_y as numerators over a common denominator (as
-    :func:`ndf_d`): ``(v, m_x, m_y, den)``.
+    """G2 / (4 cos_i cos_o) for directions above the horizon as a fraction, with its
+    logarithmic partial derivatives in alpha_x and alpha_y as numerators over a common
+    denominator (as :func:`ndf_d`): ``(numerator, denominator, m_x, m_y, den)``.
 
     For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
     1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
@@ -163,33 +167,32 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
         ro = ggx_root(ax, ay, ox, oy, oz)
         # d root / d alpha_x = alpha_x x^2 / root (the root of Heitz 2014, eq. 86)
         if separable:
-            v = 1.0 / ((iz + ri) * (oz + ro))
             # Walter et al. 2007, eq. 34 (G1 of each side) differentiated:
             # d ln v = -d root_i / (z_i + root_i) - d root_o / (z_o + root_o)
             p = ri * (iz + ri)
             r = ro * (oz + ro)
-            return (v, -ax * (ix * ix * r + ox * ox * p), -ay * (iy * iy * r + oy * oy * p),
-                    p * r)
+            return (1.0, (iz + ri) * (oz + ro), -ax * (ix * ix * r + ox * ox * p),
+                    -ay * (iy * iy * r + oy * oy * p), p * r)
         s = ri * oz + ro * iz
-        v = 0.5 / s  # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86); d ln v = -d s / s
-        return (v, -ax * (ix * ix * oz * ro + ox * ox * iz * ri),
+        # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86): v = 1 / (2 s); d ln v = -d s / s
+        return (1.0, 2.0 * s, -ax * (ix * ix * oz * ro + ox * ox * iz * ri),
                 -ay * (iy * iy * oz * ro + oy * oy * iz * ri), ri * ro * s)
     li, li_x, li_y = smith_lambda_d(dist, ax, ay, ix, iy, iz)
     lo, lo_x, lo_y = smith_lambda_d(dist, ax, ay, ox, oy, oz)
     if separable:
-        v = 1.0 / ((1.0 + li) * (1.0 + lo)) / (4.0 * iz * oz)  # Heitz 2014, eq. 98
+        m = (1.0 + li) * (1.0 + lo)  # Heitz 2014, eq. 98: v = 1 / (m 4 cos_i cos_o)
         # d ln v = -d Lambda_i / (1 + Lambda_i) - d Lambda_o / (1 + Lambda_o)
-        return (v, -(li_x * (1.0 + lo) + lo_x * (1.0 + li)),
-                -(li_y * (1.0 + lo) + lo_y * (1.0 + li)), (1.0 + li) * (1.0 + lo))
-    s = 1.0 + li + lo
-    v = 1.0 / s / (4.0 * iz * oz)  # eq. 99
-    return v, -(li_x + lo_x), -(li_y + lo_y), s
+        return (1.0, m * (4.0 * iz * oz), -(li_x * (1.0 + lo) + lo_x * (1.0 + li)),
+                -(li_y * (1.0 + lo) + lo_y * (1.0 + li)), m)
+    s = 1.0 + li + lo  # eq. 99: v = 1 / (s 4 cos_i cos_o)
+    return 1.0, s * (4.0 * iz * oz), -(li_x + lo_x), -(li_y + lo_y), s
 
 
 @kernel
 def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon (see :func:`visibility_d`)."""
-    return visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)[0]
+    num, den, _, _, _ = visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)
+    return num / den
 
 
 @kernel
@@ -378,15 +381,18 @@ def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
 
     The derivatives are f times the sum of the logarithmic derivatives of D and of G2 / (4
     cos_i cos_o), each a fraction (:func:`ndf_d`, :func:`visibility_d`): over their common
-    denominator, one division serves both (the divisions bounded the gradient pass)."""
+    denominator, one division serves both (the divisions bounded the gradient pass). D and
+    G2 / (4 cos_i cos_o), fractions too, make f with one division (two took half again as
+    long in an evaluation of ``lambert + ggx``)."""
     ax = q[nch]
     ay = q[nch + 1]
     hx = ix + ox
     hy = iy + oy
     hz = iz + oz
-    d, n_x, n_y, den = ndf_d(dist, ax, ay, hx, hy, hz)
-    v, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy, oz)
-    f = d * v
+    d, d_den, n_x, n_y, den = ndf_d(dist, ax, ay, hx, hy, hz)
+    v, v_den, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox,
+                                             oy, oz)
+    f = d * v / (d_den * v_den)
     u = f / (den * den_v)
     above = iz > 0.0 and oz > 0.0  # selects, not branches: keep the loops vectorised
     return (f if above else 0.0, ((n_x * den_v + m_x * den) * u) if above else 0.0,
