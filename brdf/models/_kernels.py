@@ -865,6 +865,15 @@ def stack_array(typingctx, n0, n1, n2):
 ROWS = 256
 
 
+@inline_kernel
+def _off_unit(a, b, k, low, high):
+    """1 if the squared length of row k of ``a`` or ``b`` is outside [low, high] (NaN
+    included), else 0 (a select, not a branch)."""
+    si = a[k, 0] * a[k, 0] + a[k, 1] * a[k, 1] + a[k, 2] * a[k, 2]
+    so = b[k, 0] * b[k, 0] + b[k, 1] * b[k, 1] + b[k, 2] * b[k, 2]
+    return 0 if (si >= low and si <= high and so >= low and so <= high) else 1
+
+
 @kernel
 def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
     """Set ``out[k, :nch]`` to f(wi_k, wo_k), the sum of the lobes, at every row of a block
@@ -872,45 +881,37 @@ def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
     or wo is outside [low, high] (NaN included).
 
     With three channels, the Lambertian lobes are summed into one albedo that sets ``out``
-    in the pass that would otherwise zero it (a Lambertian pass of its own cost as much as
-    the GGX pass of ``lambert + ggx``). That loop reads the rows with their length as numba
-    reads it: with the length a constant (:func:`with_last_axis`) LLVM loads all three
-    coordinates of each row and shuffles them, for the one it needs, at half the speed."""
+    in the pass that screens the lengths, which reads every coordinate of the rows anyway
+    (as a pass of its own, the Lambertian term ran one row at a time and cost as much as
+    the screen: a sixth of ``lambert + ggx``); without a Lambertian lobe that albedo is 0."""
+    a = with_last_axis(wi, 3)
+    b = with_last_axis(wo, 3)
+    bad = 0
     if nch == 3:
         d0 = d1 = d2 = 0.0
-        diffuse = False
         for l in range(kinds.shape[0]):
             if kinds[l] == K.LAMBERT:
                 d0 += p[offs[l]]
                 d1 += p[offs[l] + 1]
                 d2 += p[offs[l] + 2]
-                diffuse = True
-        if diffuse:
-            for k in range(out.shape[0]):
-                v = lambert.per_albedo(wi[k, 2], wo[k, 2])  # f = rho / pi
-                out[k, 0] = d0 * v
-                out[k, 1] = d1 * v
-                out[k, 2] = d2 * v
-        else:  # zeroing alone runs at three times the speed of that loop
-            for k in range(out.shape[0]):
-                for c in range(3):
-                    out[k, c] = 0.0
+        o = with_last_axis(out, 3)
+        for k in range(a.shape[0]):
+            bad += _off_unit(a, b, k, low, high)
+            v = lambert.per_albedo(a[k, 2], b[k, 2])  # f = rho / pi
+            o[k, 0] = d0 * v
+            o[k, 1] = d1 * v
+            o[k, 2] = d2 * v
         for l in range(kinds.shape[0]):
             if kinds[l] != K.LAMBERT:
                 lobe_eval_block(kinds[l], p[offs[l]:offs[l + 1]], 3, wi, wo, out)
-    else:
-        for k in range(out.shape[0]):
-            for c in range(nch):
-                out[k, c] = 0.0
-        for l in range(kinds.shape[0]):
-            lobe_eval_block(kinds[l], p[offs[l]:offs[l + 1]], nch, wi, wo, out)
-    a = with_last_axis(wi, 3)
-    b = with_last_axis(wo, 3)
-    bad = 0
+        return bad
+    for k in range(out.shape[0]):
+        for c in range(nch):
+            out[k, c] = 0.0
+    for l in range(kinds.shape[0]):
+        lobe_eval_block(kinds[l], p[offs[l]:offs[l + 1]], nch, wi, wo, out)
     for k in range(a.shape[0]):
-        si = a[k, 0] * a[k, 0] + a[k, 1] * a[k, 1] + a[k, 2] * a[k, 2]
-        so = b[k, 0] * b[k, 0] + b[k, 1] * b[k, 1] + b[k, 2] * b[k, 2]
-        bad += 0 if (si >= low and si <= high and so >= low and so <= high) else 1
+        bad += _off_unit(a, b, k, low, high)
     return bad
 
 
