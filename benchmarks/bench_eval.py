@@ -16,7 +16,10 @@ separable Smith masking, which is our default):
   writes an output of the same shape into a fresh array (no formula): the limit of any
   evaluation with numpy arrays in and out, set by memory traffic and page faults.
 
-Ratios are printed against each baseline; the values of all three are compared too.
+Ratios are printed against each baseline; the values of all three are compared too. Then the
+same two with the output array given (``Model.eval(wi, wo, out=out)``, numpy's idiom for a
+caller that evaluates batch after batch): without a fresh array's page faults, against the
+memory bound writing into the same array.
 
 Then the cost of a call on few pairs (``--small``, default 16 and 1,305: a plot's or a table
 row's worth), where fixed costs dominate: ``Model.eval`` against Mitsuba 3 with its BSDFs built
@@ -63,8 +66,8 @@ def read_write(wi, wo, out):
         out[k, 2] = s
 
 
-def memory_bound(wi, wo):
-    out = np.empty((len(wi), 3))
+def memory_bound(wi, wo, out=None):
+    out = np.empty((len(wi), 3)) if out is None else out
     read_write(wi, wo, out)
     return out
 
@@ -146,6 +149,16 @@ def main():
     for name, values in checks:
         rel = np.max(np.abs(ours - values) / np.maximum(np.abs(values), 1e-6))
         print(f"max relative difference to {name}: {rel:.2e}")
+    out = np.empty_like(ours)
+    given = [("brdf Model.eval(out=out)", *best_time(lambda: model.eval(wi, wo, out=out),
+                                                      args.repeats)),
+             ("memory bound, output given", *best_time(lambda: memory_bound(wi, wo, out),
+                                                      args.repeats))]
+    print(f"\nthe output array given (out=), best of {args.repeats}")
+    for name, best, median in given:
+        print(f"{name:48s} {best * 1e3:9.2f} {median * 1e3:10.2f} {args.pairs / best / 1e6:10.1f}")
+    print(f"ratio brdf / memory bound, output given: {given[1][1] / given[0][1]:.2f}x; "
+          f"brdf with out= / brdf without: {ours_best / given[0][1]:.2f}x")
     if args.small:
         print(f"\nper call, best of {args.repeats} rounds")
         print(f"{'pairs':>7s} {'brdf us':>9s} {'mitsuba us':>11s} {'numpy us':>9s} "

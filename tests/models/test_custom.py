@@ -248,6 +248,21 @@ def test_a_sum_is_the_sum_of_its_lobes(spec):
     assert np.allclose(err, sum(p[1] for p in parts), rtol=1e-14)
 
 
+@pytest.mark.parametrize("spec", SUMS)
+def test_out_receives_a_sums_values_and_density(spec):
+    """``out=`` on the numpy path: the same values as a new array, written into ``out``."""
+    m = brdf.parse(spec)
+    rng = np.random.default_rng(4)
+    wi, wo = upper_directions(rng, 40), upper_directions(rng, 40)
+    out, dens = np.full((40, m.channels), np.nan), np.full(40, np.nan)
+    assert m.eval(wi, wo, out=out) is out
+    assert np.array_equal(out, m.eval(wi, wo))
+    assert m.pdf(wi, wo, out=dens) is dens
+    assert np.array_equal(dens, m.pdf(wi, wo))
+    with pytest.raises(InputError, match=r"^out: expected a float64 array shaped \(40,\)"):
+        m.pdf(wi, wo, out=np.empty(39))
+
+
 @pytest.mark.parametrize("spec", ["lambert(albedo=0.4) + ggx(alpha=0.2, ks=0.5)",
                                   "lambert(albedo=[0.5,0.3,0.2]) + mirror(reflectance=0.6) + "
                                   "beckmann(alpha=0.4)"])
