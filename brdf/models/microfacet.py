@@ -155,9 +155,10 @@ def g1(dist, ax, ay, x, y, z):
 
 @kernel
 def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
-    """G2 / (4 cos_i cos_o) for directions above the horizon as a fraction, with its
+    """G2 / (4 cos_i cos_o) for directions above the horizon as its reciprocal, so that a
+    caller multiplying it into other fractions divides once for all of them, with its
     logarithmic partial derivatives in alpha_x and alpha_y as numerators over a common
-    denominator (as :func:`ndf_d`): ``(numerator, denominator, m_x, m_y, den)``.
+    denominator (as :func:`ndf_d`): ``(1 / v, m_x, m_y, den)``.
 
     For GGX, G1 = 2 z / (z + root) cancels the cosines: separable G2 / (4 cos_i cos_o) =
     1 / ((z_i + root_i)(z_o + root_o)), height-correlated = 1 / (2 (root_i z_o + root_o z_i)).
@@ -171,28 +172,27 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
             # d ln v = -d root_i / (z_i + root_i) - d root_o / (z_o + root_o)
             p = ri * (iz + ri)
             r = ro * (oz + ro)
-            return (1.0, (iz + ri) * (oz + ro), -ax * (ix * ix * r + ox * ox * p),
+            return ((iz + ri) * (oz + ro), -ax * (ix * ix * r + ox * ox * p),
                     -ay * (iy * iy * r + oy * oy * p), p * r)
         s = ri * oz + ro * iz
         # Heitz 2014, eq. 99 with GGX's Lambda (eq. 86): v = 1 / (2 s); d ln v = -d s / s
-        return (1.0, 2.0 * s, -ax * (ix * ix * oz * ro + ox * ox * iz * ri),
+        return (2.0 * s, -ax * (ix * ix * oz * ro + ox * ox * iz * ri),
                 -ay * (iy * iy * oz * ro + oy * oy * iz * ri), ri * ro * s)
     li, li_x, li_y = smith_lambda_d(dist, ax, ay, ix, iy, iz)
     lo, lo_x, lo_y = smith_lambda_d(dist, ax, ay, ox, oy, oz)
     if separable:
         m = (1.0 + li) * (1.0 + lo)  # Heitz 2014, eq. 98: v = 1 / (m 4 cos_i cos_o)
         # d ln v = -d Lambda_i / (1 + Lambda_i) - d Lambda_o / (1 + Lambda_o)
-        return (1.0, m * (4.0 * iz * oz), -(li_x * (1.0 + lo) + lo_x * (1.0 + li)),
+        return (m * (4.0 * iz * oz), -(li_x * (1.0 + lo) + lo_x * (1.0 + li)),
                 -(li_y * (1.0 + lo) + lo_y * (1.0 + li)), m)
     s = 1.0 + li + lo  # eq. 99: v = 1 / (s 4 cos_i cos_o)
-    return 1.0, s * (4.0 * iz * oz), -(li_x + lo_x), -(li_y + lo_y), s
+    return s * (4.0 * iz * oz), -(li_x + lo_x), -(li_y + lo_y), s
 
 
 @kernel
 def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon (see :func:`visibility_d`)."""
-    num, den, _, _, _ = visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)
-    return num / den
+    return 1.0 / visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)[0]
 
 
 @kernel
@@ -390,9 +390,9 @@ def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
     hy = iy + oy
     hz = iz + oz
     d, d_den, n_x, n_y, den = ndf_d(dist, ax, ay, hx, hy, hz)
-    v, v_den, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox,
-                                             oy, oz)
-    f = d * v / (d_den * v_den)
+    v_den, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy,
+                                          oz)
+    f = d / (d_den * v_den)
     u = f / (den * den_v)
     above = iz > 0.0 and oz > 0.0  # selects, not branches: keep the loops vectorised
     return (f if above else 0.0, ((n_x * den_v + m_x * den) * u) if above else 0.0,
