@@ -506,15 +506,14 @@ class Model(Component):
         values and is returned (as numpy's ``out=``): a caller evaluating many large batches
         spares each a fresh array, whose first writes fault its pages in (a third or more of
         the time of a MERL-size evaluation)."""
-        from . import _kernels
-        given = wi, wo
-        wi, wo, shape = flat_pairs(wi, wo, screen=not self.uses_kernels)
-        res = _result(out, shape + (self.channels,), wi, wo)
         if not self.uses_kernels:
             from . import mixed
-            res[...] = mixed.eval(self, wi, wo).reshape(res.shape)
-            return res
-        c = self._compiled()  # its kernel screens the lengths
+            return _filled(out, mixed.eval(self, wi, wo), wi, wo)
+        from . import _kernels
+        given = wi, wo
+        wi, wo, shape = flat_pairs(wi, wo, screen=False)  # the kernel screens the lengths
+        c = self._compiled()
+        res = _result(out, shape + (c.nch,), wi, wo)
         if _kernels.eval_array(*c.args, wi, wo, res.reshape(-1, c.nch), *UNIT_SQ):
             direction_array(given[0], "wi")  # raise, naming the first row refused
             direction_array(given[1], "wo")
@@ -523,13 +522,12 @@ class Model(Component):
     def pdf(self, wi, wo, out=None):
         """Solid-angle density of :meth:`sample` at ``wo``, shaped ``(...)``; ``out`` as in
         :meth:`eval`."""
-        wi, wo, shape = flat_pairs(wi, wo)
-        res = _result(out, shape, wi, wo)
         if not self.uses_kernels:
             from . import mixed
-            res[...] = mixed.pdf(self, wi, wo).reshape(shape)
-            return res
+            return _filled(out, mixed.pdf(self, wi, wo), wi, wo)
         from . import _kernels
+        wi, wo, shape = flat_pairs(wi, wo)
+        res = _result(out, shape, wi, wo)
         _kernels.pdf_array(*self._compiled().args, wi, wo, res.reshape(-1))
         return res
 
@@ -672,6 +670,16 @@ def _result(out, shape, *inputs):
     if any(np.may_share_memory(out, a) for a in inputs):
         raise InputError("out: shares memory with wi or wo; expected an array of its own")
     return out
+
+
+def _filled(out, values, *inputs):
+    """``values``, a result computed in numpy, delivered as :func:`_result` would: ``values``
+    itself without ``out``, else copied into ``out`` once it is checked."""
+    if out is None:
+        return values
+    res = _result(out, values.shape, *inputs)
+    res[...] = values
+    return res
 
 
 def sample_inputs(wi, u):
