@@ -25,12 +25,11 @@ KERNELS = {"models": ("the model kernels", ("brdf.models.", "brdf.sampling", "br
 #: Seconds a cold compile of each group alone takes on one idle core, rounded up to 5 s: the
 #: CPU seconds of ``brdf.precompile.compile_groups([group])`` in a fresh process with an empty
 #: cache (NUMBA_CACHE_LOCATOR_CLASSES=UserProvidedCacheLocator, a new NUMBA_CACHE_DIR), one
-#: group after another, on the 2-core development host (2026-12-04, load average 2.4-5.3 from
-#: other work, so wall times were 1.3-3 times these): models 59.5 s, fitting 30.1 s, tables
-#: 19.0 s, render 75.6 s. A first command compiles only the kernels it calls, for its model's
-#: families alone (see ``brdf.models._kernels.family_kinds``): a first ``check`` of
-#: ``lambert + ggx`` 9.0 s (2026-12-05), its first fit 22 s more.
-COLD_SECONDS = {"models": 60, "fitting": 35, "tables": 20, "render": 80}
+#: group after another, on the 2-core Intel development host (2026-12-06, load average 1.1):
+#: models 30.9 s, fitting 22.7 s, tables 9.6 s, render 36.5 s. A first command compiles only
+#: the kernels it calls, for its model's families alone (see
+#: ``brdf.models._kernels.family_kinds``): a first ``check`` of ``lambert + ggx`` 7.4 s.
+COLD_SECONDS = {"models": 35, "fitting": 25, "tables": 10, "render": 40}
 
 
 def group_of(module):
@@ -53,7 +52,7 @@ class CompileNotice(event.Listener):
 
     Before the first compile of each group in this process, one line on stderr
     (:func:`brdf.progress.note`, silenced by ``quiet``): ``compiling the model kernels once
-    for this machine (up to about 60 s) ...``, the group's :data:`COLD_SECONDS` (a command
+    for this machine (up to about 35 s) ...``, the group's :data:`COLD_SECONDS` (a command
     may need only part of the group). A kernel's callees compile within its own compile;
     they count as its work and print nothing of their own.
 

@@ -115,14 +115,14 @@ def _render_derivatives():
 #: top-level kernels; callees they share come from whichever part compiled them first, through
 #: the disk cache, or compile twice). Each part with the CPU seconds it took on an empty cache,
 #: rounded up to 5 s, so the longest start first: all parts in one process, longest first, on
-#: the 2-core Intel development host (2026-12-05, 77.9 s in all): render 30.4 s, model eval
-#: 17.3 s, render derivatives 6.9 s, model sampling 6.4 s, fitting gradient 9.9 s, fitting
-#: losses 5.1 s, tables 1.6 s. Their sums set the notice's estimate (50 s on two processes,
-#: where two took 48.6 s; 100 s on one, where one took 91.5 s).
-GROUPS = {"models": ((_model_eval, 20), (_model_sampling, 10)),
-          "fitting": ((_fitting_gradient, 10), (_fitting_losses, 10)),
+#: the 2-core Intel development host (2026-12-06, 64.8 s in all): render 28.8 s, model eval
+#: 11.3 s, fitting gradient 8.4 s, render derivatives 5.5 s, fitting losses 5.0 s, model
+#: sampling 4.1 s, tables 1.7 s. Their sums set the notice's estimate (40 s on two processes,
+#: where two took 39.8 s; 80 s on one, where one took 68.1 s).
+GROUPS = {"models": ((_model_eval, 15), (_model_sampling, 5)),
+          "fitting": ((_fitting_gradient, 10), (_fitting_losses, 5)),
           "tables": ((_tables, 5),),
-          "render": ((_render, 35), (_render_derivatives, 10))}
+          "render": ((_render, 30), (_render_derivatives, 10))}
 #: Processes the parts are dealt out to by default (one per core of a 2-core machine).
 PROCESSES = 2
 

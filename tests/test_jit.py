@@ -20,8 +20,8 @@ import pytest
 from numba import typeof
 from numba.core import types
 
-from brdf._jit import (allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
-                       nogil_kernel, share_queue, threaded_kernel)
+from brdf._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_threads,
+                       inline_kernel, kernel, nogil_kernel, share_queue, threaded_kernel)
 from brdf._threads import SERIAL_SAMPLES, serial_below, thread_count, using_threads
 
 
@@ -155,8 +155,12 @@ def _doubled_into(a, out):
         out[k] = 2.0 * a[k]
 
 
-@pytest.mark.parametrize("compile_with", [kernel, nogil_kernel, allocating_kernel, inline_kernel,
-                                          threaded_kernel("a", "out")])
+_LINKED = (inline_kernel, kernel(linked=OPTIMISED), kernel(linked=AS_LOWERED),
+           allocating_kernel(linked=AS_LOWERED))
+
+
+@pytest.mark.parametrize("compile_with", [kernel, nogil_kernel, allocating_kernel,
+                                          threaded_kernel("a", "out"), *_LINKED])
 def test_kernels_are_compiled_without_a_c_callable_wrapper(compile_with):
     """numba made a ``cfunc`` wrapper (numba's first-class function entry) for every kernel, which
     no kernel is passed as; compiling them was 7 % of compiling every kernel."""
@@ -171,25 +175,65 @@ def test_kernels_are_compiled_without_a_c_callable_wrapper(compile_with):
     assert cres.fndesc.llvm_cpython_wrapper_name in names
     assert cres.fndesc.llvm_cfunc_wrapper_name not in names
     # marked for the unoptimised code generator (test_an_inline_kernel_is_cached_...) or not
-    assert getattr(cres.library, "brdf_inline", False) == (compile_with is inline_kernel)
+    assert (getattr(cres.library, "brdf_linked", None) is not None) == (compile_with in _LINKED)
+
+
+def _times_three(a, k):
+    return _scaled(a, 3, k)
+
+
+@pytest.mark.parametrize("linked", [OPTIMISED, AS_LOWERED])
+def test_a_kernel_linked_as_lowered_leaves_its_module_to_its_callers(linked):
+    """A kernel linked OPTIMISED has its callees inlined in its own module, as any kernel;
+    one linked AS_LOWERED keeps its module as numba lowered it, calls included, for each
+    caller's optimisation to do once. Both compute the same."""
+    compiled = kernel(linked=linked)(_times_three)
+    compiled._cache = numba.core.caching.NullCache()  # compile here, so the IR is there
+    assert compiled(np.arange(4.0), 2) == 6.0
+    (cres,) = compiled.overloads.values()
+    callee = next(iter(_scaled.overloads.values())).fndesc.mangled_name
+    calls = [line for line in str(cres.library._final_module).splitlines()
+             if " call " in line and callee in line]
+    assert bool(calls) == (linked == AS_LOWERED)
+
+
+@pytest.mark.parametrize("linked", ["optimized", "", True])
+def test_an_unknown_way_of_linking_is_refused(linked):
+    with pytest.raises(ValueError, match="linked="):
+        kernel(linked=linked)(_doubled_into)
 
 
 # Toy kernels for fresh processes: an inline kernel, and callers in a module of their own
 # (numba's cache of a kernel outside the package is dropped when its file changes)
 _INLINE_TOY = """
-from brdf._jit import inline_kernel
+import numpy as np
+from brdf._jit import AS_LOWERED, OPTIMISED, allocating_kernel, inline_kernel, kernel
 
 @inline_kernel
 def scaled(a, k):
     return 3.0 * a[k] + 1.0
+
+@kernel(linked=OPTIMISED)
+def summed(a, k):
+    s = 0.0
+    for j in range(k + 1):
+        s += a[j]
+    return s
+
+@allocating_kernel(linked=AS_LOWERED)
+def squares(a, k):
+    b = np.empty(a.shape[0])
+    for j in range(a.shape[0]):
+        b[j] = a[j] * a[j]
+    return b[k] + summed(a, k)
 """
 _CALLERS = """
-from brdf._jit import kernel
-from toy_inline import scaled
+from brdf._jit import allocating_kernel
+from toy_inline import scaled, squares, summed
 
-@kernel
+@allocating_kernel
 def {name}(a):
-    return scaled(a, {index})
+    return scaled(a, {index}) + 10.0 * summed(a, {index}) + 100.0 * squares(a, {index})
 """
 _RUN = """
 import json, sys
@@ -198,18 +242,21 @@ sys.path.insert(0, sys.argv[1])
 import toy_inline, toy_callers
 a = np.arange(4.0)
 caller = getattr(toy_callers, sys.argv[2])
-values = {"caller": caller(a), "inline": toy_inline.scaled(a, 2)}
-stats = {"inline": toy_inline.scaled.stats, "caller": caller.stats}
+callees = ("scaled", "summed", "squares")
+values = {"caller": caller(a), **{k: getattr(toy_inline, k)(a, 2) for k in callees}}
+stats = {"caller": caller.stats, **{k: getattr(toy_inline, k).stats for k in callees}}
 print(json.dumps({"values": values,
                   "compiled": {k: len(s.cache_misses) for k, s in stats.items()},
                   "loaded": {k: len(s.cache_hits) for k, s in stats.items()}}))
 """
 
 
-def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
-    """An inline kernel's own machine code comes from LLVM's unoptimised code generator
-    (``_package_machine_code``); it must still run from Python, be saved to the
-    disk cache, and load from it both to run and to be linked into a caller compiled later."""
+def test_linked_kernels_are_cached_and_linked_from_their_cache(tmp_path):
+    """The own machine code of a kernel only kernels call (an inline kernel, or one declared
+    ``linked=``) comes from LLVM's unoptimised code generator (``_package_machine_code``),
+    and one linked AS_LOWERED has its module left unoptimised for its callers; each must
+    still run from Python, be saved to the disk cache, and load from it both to run and to be
+    linked into a caller compiled later."""
     import json
     import os
     (tmp_path / "toy_inline.py").write_text(_INLINE_TOY)
@@ -222,13 +269,15 @@ def test_an_inline_kernel_is_cached_and_linked_from_its_cache(tmp_path):
         assert done.returncode == 0, done.stderr
         return json.loads(done.stdout.splitlines()[-1])
 
-    cold = run("first", "0")
-    assert cold["values"] == {"caller": 1.0, "inline": 7.0}
-    assert cold["compiled"] == {"inline": 1, "caller": 1}
-    warm = run("last", "a.shape[0] - 1")  # a caller new to the cache
-    assert warm["values"] == {"caller": 10.0, "inline": 7.0}
-    assert warm["compiled"] == {"inline": 0, "caller": 1}
-    assert warm["loaded"] == {"inline": 1, "caller": 0}
+    # from Python, at a = (0, 1, 2, 3), k = 2: scaled 7, summed 3, squares 4 + 3
+    callees = {"scaled": 7.0, "summed": 3.0, "squares": 7.0}
+    cold = run("first", "0")  # scaled 1, summed 0, squares 0
+    assert cold["values"] == {"caller": 1.0, **callees}
+    assert cold["compiled"] == {"caller": 1, "scaled": 1, "summed": 1, "squares": 1}
+    warm = run("last", "a.shape[0] - 1")  # a caller new to the cache: 10 + 60 + 1500
+    assert warm["values"] == {"caller": 1570.0, **callees}
+    assert warm["compiled"] == {"caller": 1, "scaled": 0, "summed": 0, "squares": 0}
+    assert warm["loaded"] == {"caller": 0, "scaled": 1, "summed": 1, "squares": 1}
 
 
 _WIDE = """

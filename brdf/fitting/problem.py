@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._jit import (fetch_add, inline_kernel, kernel, narrow_vectors, nogil_kernel, share_queue,
-                     sparse_product)
+from .._jit import (AS_LOWERED, fetch_add, inline_kernel, kernel, narrow_vectors, nogil_kernel,
+                     share_queue, sparse_product)
 from ..errors import InputError, ParameterError
 from ..models import _kinds as K
 from ..models._kernels import (family_namespace, lobe_derivatives, lobe_eval_block,
@@ -834,7 +834,7 @@ FOLD_LOSS_SOURCE = _define_rows(_FOLD_LOSS_ARGS)
 
 
 @narrow_vectors
-@kernel
+@kernel(linked=AS_LOWERED)
 def _fold_loss_blocks(kinds, offs, params, lobe, wi, wo, scale, target, weight, out):
     """``out[j, c]``: the terms of one block (the rows of ``wi``) for each parameter row j of
     ``params``, by :func:`_fold_loss_rows` (three channels, Lambertian lobes and the one lobe
@@ -857,7 +857,7 @@ def _fold_loss_blocks(kinds, offs, params, lobe, wi, wo, scale, target, weight, 
             out[j, c] = sums[c]
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _fold_blocks(kinds, offs, params, needed, lobe, wi, wo, scale, target, weight, block, loss,
                  grad):
     """:func:`_group_loss_gradient` for three channels and a model of Lambertian lobes and one
@@ -901,7 +901,7 @@ def _fold_blocks(kinds, offs, params, needed, lobe, wi, wo, scale, target, weigh
                 grad[b, offs[lobe] + j] = sums[6 + j]
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _group_loss_gradient(kinds, offs, params, needed, chan, lobe, nch, wi, wo, scale, target,
                          weight, offset, block, loss, grad, fs, terms, ds):
     """Blocks of :func:`_loss_gradient_sums` (``block`` rows each, from the first row of

@@ -49,7 +49,7 @@ from numba.core.typeconv import Conversion
 from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic
 
-from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
+from .._jit import AS_LOWERED, allocating_kernel, inline_kernel, kernel, threaded_kernel
 from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
@@ -568,7 +568,7 @@ def lobe_derivatives(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
     lobe_grad(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d)
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def mixture_gradient(kinds, offs, p, ix, iy, iz, ox, oy, oz, out, d):
     """f(wi, wo) in RGB of the sum of the lobes on the one parameter vector ``p`` into
     ``out[0]``, and df_c / dp[j] into ``d[j, 0, c]`` for every packed parameter (0 where f does
@@ -731,7 +731,7 @@ DRAWN, GIVEN, PDF, QUERY_ROWS = 0, 3, 6, 7
 PAIR, DRAW = 0, 1
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def mixture_batch(kinds, offs, p, step, nch, q, f, u1, u2, sel, work, chosen, lists, counts,
                   forward):
     """One pass of a mixture over a batch of items: what sampling, the densities and f need.
@@ -813,7 +813,7 @@ def with_last_axis(typingctx, arr, size):
     return arr(arr, size), codegen
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def lobe_eval_block(kind, q, nch, wi, wo, out):
     """:func:`lobe_eval_rows` on a block of rows: ``wi``, ``wo`` (m, 3) and ``out`` (m, nch),
     C-contiguous.
@@ -874,7 +874,7 @@ def _off_unit(a, b, k, low, high):
     return 0 if (si >= low and si <= high and so >= low and so <= high) else 1
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
     """Set ``out[k, :nch]`` to f(wi_k, wo_k), the sum of the lobes, at every row of a block
     (see :func:`lobe_eval_block`); returns the number of rows where the squared length of wi
@@ -952,7 +952,7 @@ def grad_array(kinds, offs, p, nch, wi, wo, out, d):
 BATCH = 256
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
     """:func:`pdf_array` for the m directions from k0 on (a kernel of its own, which allocates
     the batch's work space)."""
@@ -968,7 +968,7 @@ def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
         out[k0 + t] = q[PAIR, PDF, t]
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
     """:func:`sample_array` for the m directions from k0 on (see :func:`_pdf_batch`)."""
     q, f, uu, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
@@ -988,7 +988,7 @@ def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
             weight[k0 + t, c] = f[DRAW, t, c]
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _batch_space(nl, nch):
     """Work space of :func:`mixture_batch` for BATCH items of ``nl`` lobes: query sets, values,
     the uniform pair, selection, work and chosen, five lists and their counts."""
@@ -1031,7 +1031,7 @@ def _edge_warp(t):
     return (g if t <= 0.5 else min(1.0 - g, BELOW_ONE)), 30.0 * s * s * (1.0 - s) * (1.0 - s)
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs, ws, f, acc, zone, node):
     """Tensor Gauss rule (xs, ws on [0, 1]) of f cos / pdf over one square panel into ``acc``.
 
@@ -1068,7 +1068,7 @@ def _panel(kind, q, nch, term, ix, iy, iz, x0, y0, h, xs, ws, f, acc, zone, node
     return seen, step, peak
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _straddles(seen):
     """Whether a zone mask (bit zone + 1) holds two zones other than 0: samples invalid for
     another reason than the horizon mark no cut."""
@@ -1076,7 +1076,7 @@ def _straddles(seen):
     return rest & (rest - 1) != 0
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _step(zone, node, nch, n, a, b, a2, b2):
     """Largest change of the integrand from node (a, b) to node (a2, b2) if the latter is inside
     the n x n grid and in another nonzero zone, else 0."""
@@ -1088,7 +1088,7 @@ def _step(zone, node, nch, n, a, b, a2, b2):
     return d
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _estimate(kind, q, nch, term, ix, iy, iz, x0, y0, h, rules, f, val, lo, e, zone, node):
     """High-order value of a panel into ``val``, its per-channel error estimate into ``e``.
 
@@ -1134,7 +1134,7 @@ def _estimate(kind, q, nch, term, ix, iy, iz, x0, y0, h, rules, f, val, lo, e, z
     return worst
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _refine(kind, q, nch, term, ix, iy, iz, rules, tol, geo, val, perr, pe, f, lo, zone, node):
     """Adaptive cubature of one term of a lobe's albedo over its sampling square: the panels
     ``geo[:n]`` (corner x, y and size), their values ``val`` and error estimates ``pe``;
@@ -1181,7 +1181,7 @@ def _refine(kind, q, nch, term, ix, iy, iz, rules, tol, geo, val, perr, pe, f, l
     return n
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
     """Add the integral of df/dq_j cos(theta_o) over the outgoing hemisphere to ``dout[j, c]``
     for the lobe's packed parameters q_j, by the high-order rule on panels ``geo[:n]`` of its
@@ -1210,7 +1210,7 @@ def _gradient_over_panels(kind, q, nch, ix, iy, iz, geo, n, xs, ws, dout):
                         dout[i, c] += d[i, 0, c] * s
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err, dout):
     """One term of a lobe's albedo into ``out`` and ``err`` (see ``_refine``), and unless
     ``dout`` is None its derivatives in the lobe's packed parameters into ``dout`` (P, C)

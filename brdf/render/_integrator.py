@@ -45,7 +45,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from .._jit import allocating_kernel, fetch_add, in_threads, inline_kernel, kernel, nogil_kernel
+from .._jit import (AS_LOWERED, allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
+                    nogil_kernel)
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
@@ -291,7 +292,7 @@ def _camera_ray(cam, opts, x, y, state, j):
     return cam[0], cam[1], cam[2], dx / n, dy / n, dz / n
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _draw(fl, state):
     """Every lane's five numbers for its next vertex (rows U to U + 4), drawn from its stream in
     one pass that runs in SIMD lanes. A path that ends at the vertex leaves some unused; the
@@ -315,7 +316,7 @@ def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
     il[SPECULAR, j], il[END, j] = 1, 0
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     """Move every lane on: a shaded path adds its light sample where the shadow ray got through
     and turns into its sampled direction (or ends: no sample, below the surface, Russian
@@ -360,7 +361,7 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     return start, busy
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _vertices(opts, geo, mats, lights, p):
     """Each path at the vertex its ray found: emission seen there (or the environment on a
     miss), the end of the path or its shading frame, parameters and next-event sample. The
@@ -457,7 +458,7 @@ def _vertices(opts, geo, mats, lights, p):
     return shading, shadows
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _frames(p):
     """Complete every lane's shading frame and turn its directions into it: from the shading
     normal (row S) and tangent (row A) that :func:`_vertices` leaves, the tangent made
@@ -496,7 +497,7 @@ def _lit(il, sh, j):
     return (nee >= 0) & (sh[LENGTH, max(nee, 0)] >= 0.0)
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _shade(opts, mats, p):
     """The BSDF at each shaded path's vertex, one batch per lobe layout (materials that share
     one shade together, each path with its own parameters; see ``SHARE``): a
@@ -633,7 +634,7 @@ def _settle_derivatives(fl, il, dl, dacc, j):
             dacc[y, x, c, k] += 0.0 if dropped or d - d != 0.0 else d
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _emitted(p):
     """The derivatives of what emission seen at each path's vertex added: dT times it."""
     fl, il, dl = p.fl, p.il, p.dl
@@ -647,7 +648,7 @@ def _emitted(p):
                     dl[1, c, k, j] += dl[0, c, k, j] * e
 
 
-@kernel
+@kernel(linked=AS_LOWERED)
 def _shade_target(opts, mats, slots, p):
     """On the surfaces of material opts[TARGET], f and its derivatives with the parameters of
     material opts[EVALUATE] (see :data:`Gradient`), at the direction towards the light where
@@ -694,7 +695,7 @@ def _shade_target(opts, mats, slots, p):
                     df[s, j, c, k] = d * w
 
 
-@allocating_kernel
+@allocating_kernel(linked=AS_LOWERED)
 def _packet_space(nparams, nlobes, nd):
     """A packet's work space, a :data:`Packet` for ``nd`` derivative images (zeroed: idle
     lanes' leftovers steer the packet's traversal, so they must not depend on what the memory
