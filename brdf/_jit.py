@@ -180,9 +180,9 @@ if not getattr(codegen.CPUCodeLibrary, "_brdf_tuned_passes", False):
 
 
 #: How a kernel that only other kernels call is linked into them (``linked=`` of
-#: :func:`kernel`, :func:`allocating_kernel` and :func:`inline_kernel`): its module optimised
-#: first, as any kernel's (OPTIMISED), or as numba lowered it (AS_LOWERED), left for each
-#: caller's optimisation to do once over the whole.
+#: :func:`kernel` and :func:`allocating_kernel`; an :func:`inline_kernel` is OPTIMISED): its
+#: module optimised first, as any kernel's (OPTIMISED), or as numba lowered it (AS_LOWERED),
+#: left for each caller's optimisation to do once over the whole.
 OPTIMISED, AS_LOWERED = "optimised", "as lowered"
 
 
@@ -226,11 +226,11 @@ def _package_machine_code(codegen_library):
 
     Callers never run such a kernel's own code: they link its IR and compile it with theirs,
     and only Python calls it (tests). Generating it with the optimising code generator took a
-    fifth of LLVM's code generation when every kernel compiled in one process (inline kernels),
-    and about 8 of 19 s (the others). The code generator rewrites the module it compiles, so it
-    runs on a copy: the module callers link is left as it was. The machine code is cached as
-    numba caches any: numba's engine loads the object its cache hook hands it instead of
-    compiling."""
+    fifth of LLVM's code generation when every kernel compiled in one process (inline kernels;
+    for all the other kernels only kernels call, 8 of its 19 s). The code generator rewrites the
+    module it compiles, so it runs on a copy: the module callers link is left as it was. The
+    machine code is cached as numba caches any: numba's engine loads the object its cache hook
+    hands it instead of compiling."""
     finalize_specific = codegen_library._finalize_specific
 
     def finalize_package_code(library):
