@@ -21,6 +21,7 @@ import numpy as np
 from .._jit import kernel, threaded_kernel
 from ..errors import FormatError, InputError
 from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
+from ..sampling import arctan2
 from ..table import HORIZON_SLACK, Table, sample_values
 from . import read_bytes, source_of
 
@@ -396,7 +397,7 @@ def grid_coordinates(ix, iy, iz, ox, oy, oz):
     nh = math.sqrt(hx * hx + hy * hy + hz * hz)
     hx, hy, hz = hx / nh, hy / nh, hz / nh
     sin_h = math.sqrt(hx * hx + hy * hy)
-    theta_h = math.atan2(sin_h, hz)
+    theta_h = arctan2(sin_h, hz)
     cos_p, sin_p = 1.0, 0.0  # phi_h = 0 at the pole (geometry.POLE_SINE convention)
     if sin_h >= POLE_SINE:
         cos_p, sin_p = hx / sin_h, hy / sin_h
@@ -405,8 +406,8 @@ def grid_coordinates(ix, iy, iz, ox, oy, oz):
     dy = iy * cos_p - ix * sin_p
     dz = a * sin_h + iz * hz
     sin_d = math.sqrt(dx * dx + dy * dy)
-    theta_d = math.atan2(sin_d, dz)
-    phi_d = math.atan2(dy, dx) if sin_d >= POLE_SINE else 0.0
+    theta_d = arctan2(sin_d, dz)
+    phi_d = arctan2(dy, dx) if sin_d >= POLE_SINE else 0.0
     # reciprocity: swapping wi and wo adds pi to phi_d, so phi_d is periodic over pi
     # phi_d % pi without fmod's call: atan2 lies in [-pi, pi] (pi itself folds to 0 below)
     phi_d = phi_d + math.pi if phi_d < 0.0 else phi_d

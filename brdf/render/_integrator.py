@@ -105,8 +105,9 @@ def _surface(geo, i, a, b, px, py, pz, uv):
         nx, ny, nz = (px - c[0]) / c[3], (py - c[1]) / c[3], (pz - c[2]) / c[3]
         u = v = 0.0
         if uv:
-            u = (math.atan2(ny, nx) / (2.0 * math.pi)) % 1.0
-            v = 1.0 - math.acos(min(max(nz, -1.0), 1.0)) / math.pi
+            u = sampling.arctan2(ny, nx) / (2.0 * math.pi)
+            u = u + 1.0 if u < 0.0 else u  # u % 1 without fmod's call
+            v = 1.0 - sampling.arccos(nz) / math.pi
         return nx, ny, nz, nx, ny, nz, -ny, nx, 0.0, u, v
     if kind == QUAD:
         g = geo.quad[j]

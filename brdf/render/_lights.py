@@ -55,8 +55,9 @@ def gonio_intensity(table, f, dx, dy, dz):
     bx, by, bz = f[12], f[13], f[14]
     cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
     ct = dx * ax + dy * ay + dz * az
-    theta = math.acos(min(max(ct, -1.0), 1.0))
-    phi = math.atan2(dx * cx + dy * cy + dz * cz, dx * bx + dy * by + dz * bz) % (2.0 * math.pi)
+    theta = sampling.arccos(ct)
+    phi = sampling.arctan2(dx * cx + dy * cy + dz * cz, dx * bx + dy * by + dz * bz)
+    phi = phi + 2.0 * math.pi if phi < 0.0 else phi  # phi % 2 pi without fmod's call
     t = int(f[15])
     x = theta / math.pi * (GONIO_THETA - 1)
     y = phi / (2.0 * math.pi) * (GONIO_PHI - 1)
@@ -79,7 +80,8 @@ def _env_local(f, dx, dy, dz):
 @inline_kernel
 def _acos(x):
     """arccos x for x in [-1, 1] to 2e-8 (Abramowitz and Stegun 1964, 4.4.46, on |x|, and
-    arccos(-x) = pi - arccos x)."""
+    arccos(-x) = pi - arccos x): :func:`_env_pixel` settles its pixel exactly, so it needs no
+    more, and :func:`brdf.sampling.arccos` made the environment map's scene 7 % slower."""
     a = min(abs(x), 1.0)
     p = -0.0012624911
     p = p * a + 0.0066700901
@@ -96,7 +98,8 @@ def _acos(x):
 @inline_kernel
 def _atan2(y, x):
     """atan2(y, x) in [-pi, pi] to 2e-8: the arctangent of min / max of |x| and |y|
-    (Abramowitz and Stegun 1964, 4.4.49, on [0, 1]), then its reflections into the octant."""
+    (Abramowitz and Stegun 1964, 4.4.49, on [0, 1]), then its reflections into the octant (the
+    coarse twin of :func:`brdf.sampling.arctan2`, for :func:`_env_pixel`, as :func:`_acos`)."""
     ax, ay = abs(x), abs(y)
     hi = max(ax, ay)
     t = min(ax, ay) / hi if hi > 0.0 else 0.0

@@ -33,7 +33,7 @@ from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
 from ..io.merl import trilinear_pair
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, continuous,
                                cosine_over_pdf, mixture_batch)
-from ..sampling import sincos_turn, square_to_cosine_hemisphere
+from ..sampling import arccos, arctan2, sincos_turn, square_to_cosine_hemisphere
 
 MODEL, MEASURED = 0, 1
 #: columns of ``mint``
@@ -91,7 +91,7 @@ def material_params(mats, m, u, v, row):
 @kernel
 def _tab_bin(vz):
     """Incidence bin of cos(theta_v) = vz (bins uniform in theta)."""
-    theta = math.acos(min(max(vz, 0.0), 1.0))
+    theta = arccos(max(vz, 0.0))
     return min(int(theta / (0.5 * math.pi) * TAB_THETA_I), TAB_THETA_I - 1)
 
 
@@ -110,11 +110,11 @@ def _tab_pdf(cdf, vx, vy, vz, lx, ly, lz):
     # l's azimuth from v's in [0, 2 pi): one arctangent of the angle between their
     # projections; v at the pole has azimuth 0, as the sampler's atan2(0, 0) gives it
     if vx == 0.0 and vy == 0.0:
-        phi = math.atan2(ly, lx)
+        phi = arctan2(ly, lx)
     else:
-        phi = math.atan2(vx * ly - vy * lx, vx * lx + vy * ly)
+        phi = arctan2(vx * ly - vy * lx, vx * lx + vy * ly)
     phi = phi + 2.0 * math.pi if phi < 0.0 else phi
-    it = min(int(math.acos(min(lz, 1.0)) / (0.5 * math.pi) * TAB_THETA), TAB_THETA - 1)
+    it = min(int(arccos(lz) / (0.5 * math.pi) * TAB_THETA), TAB_THETA - 1)
     ip = min(int(phi / (2.0 * math.pi) * TAB_PHI), TAB_PHI - 1)
     c = it * TAB_PHI + ip
     return (cdf[b, c + 1] - cdf[b, c]) / _cell_solid_angle(it)
@@ -135,7 +135,7 @@ def _tab_sample(cdf, vx, vy, vz, u1, u2):
     c0, c1 = _EDGE_COS[it], _EDGE_COS[it + 1]
     z = c0 + (c1 - c0) * s
     # phi in turns: the cell's, from the azimuth of v
-    sin_phi, cos_phi = sincos_turn((ip + u2) / TAB_PHI + math.atan2(vy, vx) / (2.0 * math.pi))
+    sin_phi, cos_phi = sincos_turn((ip + u2) / TAB_PHI + arctan2(vy, vx) / (2.0 * math.pi))
     r = math.sqrt(max(0.0, 1.0 - z * z))
     return r * cos_phi, r * sin_phi, z
 
