@@ -123,7 +123,9 @@ def _tab_pdf(cdf, vx, vy, vz, lx, ly, lz):
 @inline_kernel
 def _tab_sample(cdf, vx, vy, vz, u1, u2):
     """A cell by inverting the bin's CDF with u1 (then u1 rescaled within the cell), uniform in
-    (cos theta, phi) within it: constant density per solid angle over the cell."""
+    (cos theta, phi) within it: constant density per solid angle over the cell. Returns the
+    direction and that density (what :func:`_tab_pdf` gives there, without finding the cell
+    again)."""
     b = _tab_bin(vz)
     row = cdf[b]
     c = np.searchsorted(row, u1, side="right") - 1
@@ -137,7 +139,7 @@ def _tab_sample(cdf, vx, vy, vz, u1, u2):
     # phi in turns: the cell's, from the azimuth of v
     sin_phi, cos_phi = sincos_turn((ip + u2) / TAB_PHI + arctan2(vy, vx) / (2.0 * math.pi))
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    return r * cos_phi, r * sin_phi, z
+    return r * cos_phi, r * sin_phi, z, width / _cell_solid_angle(it)
 
 
 @inline_kernel
@@ -165,13 +167,17 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
     for t in range(counts[1]):
         j = lists[1, t]
         a, b = u1[j], u2[j]
+        vx, vy, vz = d[GIVEN, j], d[GIVEN + 1, j], d[GIVEN + 2, j]
         if a < DEFENSIVE:
             x, y, z = square_to_cosine_hemisphere(a / DEFENSIVE, b)
+            pdf = _measured_pdf(cdf, vx, vy, vz, x, y, z)
         else:
-            x, y, z = _tab_sample(cdf, d[GIVEN, j], d[GIVEN + 1, j], d[GIVEN + 2, j],
-                                  (a - DEFENSIVE) / (1.0 - DEFENSIVE), b)
+            x, y, z, tab = _tab_sample(cdf, vx, vy, vz, (a - DEFENSIVE) / (1.0 - DEFENSIVE), b)
+            # _measured_pdf, with the tabulated part's density known from the sample's cell
+            pdf = (((1.0 - DEFENSIVE) * tab + DEFENSIVE * z / math.pi)
+                   if z > 0.0 and vz > 0.0 else 0.0)
         d[DRAWN, j], d[DRAWN + 1, j], d[DRAWN + 2, j] = x, y, z
-        d[PDF, j] = _measured_pdf(cdf, d[GIVEN, j], d[GIVEN + 1, j], d[GIVEN + 2, j], x, y, z)
+        d[PDF, j] = pdf
         for c in range(3):
             f[DRAW, j, c] = 0.0
     sampled = continuous(lists[1], counts[1], d[PDF], lists[4])

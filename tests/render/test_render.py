@@ -201,6 +201,29 @@ def test_measured_sampling_matches_its_pdf(theta, phi):
     assert stats.chi2.sf(stat, dof) > 0.01, (stat, dof)
 
 
+@pytest.mark.parametrize("theta, phi", [(0.6, 2.0), (0.0, 0.0), (1.5, -1.0)])
+def test_measured_sample_reports_the_density_of_its_direction(theta, phi):
+    """The tabulated sampler reports its cell's density without finding the cell again; it is
+    the density the table gives at the sampled direction (a direction within rounding of a
+    cell's edge may fall either side)."""
+    from brdf.render import _materials as M
+    table = brdf.measure(brdf.parse("lambert(albedo=[0.3,0.3,0.3]) + ggx(alpha=0.2)"), "merl")
+    mats = render.Scene(shapes=[render.Sphere((0, 0, 0), 1, table)]).compile().mats
+    v = np.array([math.sin(theta) * math.cos(phi), math.sin(theta) * math.sin(phi),
+                  math.cos(theta)])
+    n = 100_000
+    u = np.random.default_rng(3).random((n, 2))
+    vs = np.broadcast_to(v, (n, 3)).copy()
+    l, pdf, w = np.empty((n, 3)), np.empty(n), np.empty((n, 3))
+    M.sample_array(mats, 0, vs, u, l, pdf, w)
+    again = np.empty(n)
+    M.pdf_array(mats, 0, vs, l, again)
+    tabulated = u[:, 0] >= M.DEFENSIVE
+    assert tabulated.sum() > 0.7 * n and np.all(pdf > 0.0)
+    same = np.isclose(pdf, again, rtol=1e-12, atol=0.0)
+    assert np.mean(same) > 0.9999, np.mean(same)
+
+
 def test_same_seed_same_bytes_any_thread_count():
     scene = _glossy_scene("lambert(albedo=0.5) + ggx(alpha=0.3)")
     one = render.render(scene, spp=8, size=16, seed=11, threads=1)
