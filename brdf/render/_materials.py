@@ -54,36 +54,46 @@ DEFENSIVE = 0.2
 # --- textures ---------------------------------------------------------------------------------
 
 @inline_kernel
-def texture_lookup(tex, meta, t, ch, u, v):
-    """Bilinear lookup of channel ``ch`` of texture ``t`` at (u, v), wrapping (repeat); v = 0 is
-    the image's bottom row, as in OpenGL and glTF's flipped convention of PNG rows."""
+def texel_square(meta, t, u, v):
+    """The four texels about (u, v) of texture t, wrapping (repeat), and their bilinear weights:
+    the flat indices of their first channels (lower row's left and right, then the upper row's)
+    and the weights in that order. v = 0 is the image's bottom row, as in OpenGL and glTF's
+    flipped convention of PNG rows."""
     off, w, h, nc = meta[t, 0], meta[t, 1], meta[t, 2], meta[t, 3]
     x = (u - math.floor(u)) * w - 0.5
     y = (1.0 - (v - math.floor(v))) * h - 0.5
-    x0 = int(math.floor(x))
-    y0 = int(math.floor(y))
+    # x lies in [-1/2, w - 1/2] and y in [-1/2, h - 1/2], so the corners wrap without an
+    # integer division (four a lookup cost tens of cycles each); the clamp keeps a NaN
+    # coordinate's index in range
+    x0 = min(max(int(math.floor(x)), -1), w - 1)
+    y0 = min(max(int(math.floor(y)), -1), h - 1)
     fx, fy = x - x0, y - y0
-    acc = 0.0
-    for dy in range(2):
-        yy = (y0 + dy) % h
-        wy = fy if dy else 1.0 - fy
-        for dx in range(2):
-            xx = (x0 + dx) % w
-            wx = fx if dx else 1.0 - fx
-            acc += wx * wy * tex[off + (yy * w + xx) * nc + min(ch, nc - 1)]
-    return acc
+    xa, xb = (x0 if x0 >= 0 else w - 1), (x0 + 1 if x0 + 1 < w else 0)
+    ya, yb = (y0 if y0 >= 0 else h - 1), (y0 + 1 if y0 + 1 < h else 0)
+    return (off + (ya * w + xa) * nc, off + (ya * w + xb) * nc, off + (yb * w + xa) * nc,
+            off + (yb * w + xb) * nc, (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy),
+            (1.0 - fx) * fy, fx * fy)
 
 
 @inline_kernel
 def material_params(mats, m, u, v, row):
     """Write the packed parameters of material m at surface point (u, v) into ``row``: the
-    material's own, with the slots that textures bind replaced by the textures' values there."""
-    mint, bind = mats.mint, mats.bind
+    material's own, with the slots that textures bind replaced by the textures' values there
+    (bilinear; the channels a texture binds share its four texels' indices and weights)."""
+    mint, bind, tex, meta = mats.mint, mats.bind, mats.tex, mats.texmeta
     p0 = mint[m, P0]
     for j in range(mint[m, P1] - p0):  # a slice assignment may allocate, which kernels cannot
         row[j] = mats.params[p0 + j]
+    t = -1
+    k00 = k01 = k10 = k11 = 0
+    w00 = w01 = w10 = w11 = 0.0
     for j in range(mint[m, B0], mint[m, B1]):
-        row[bind[j, 1]] = texture_lookup(mats.tex, mats.texmeta, bind[j, 2], bind[j, 3], u, v)
+        if bind[j, 2] != t:
+            t = bind[j, 2]
+            k00, k01, k10, k11, w00, w01, w10, w11 = texel_square(meta, t, u, v)
+        c = min(bind[j, 3], meta[t, 3] - 1)
+        row[bind[j, 1]] = (w00 * tex[k00 + c] + w01 * tex[k01 + c] + w10 * tex[k10 + c]
+                           + w11 * tex[k11 + c])
 
 
 # --- measured tables: tabulated importance sampling --------------------------------------------

@@ -58,6 +58,33 @@ def _cell_of(u, v, n):
     return np.clip(y.astype(int), 0, n - 1), np.clip(x.astype(int), 0, n - 1), clear
 
 
+def test_texel_square_is_bilinear_with_wrapping_against_numpy():
+    """The renderer's bilinear lookup (:func:`brdf.render._materials.texel_square`) against a
+    numpy twin, at coordinates across several periods, on texel centres and on the edges where
+    the square wraps."""
+    from brdf.render._materials import texel_square
+    h, w, nc = 5, 7, 3
+    image = np.random.default_rng(4).random((h, w, nc))
+    tex, meta = np.concatenate([np.zeros(11), image.ravel()]), np.array([[11, w, h, nc]])
+    rng = np.random.default_rng(5)
+    uv = np.concatenate([rng.uniform(-2.0, 3.0, (2000, 2)),
+                         np.array([[0.0, 0.0], [1.0, 1.0], [-1e-17, 1e-17], [0.5 / w, 1 - 0.5 / h],
+                                   [1 - 0.5 / w, 0.5 / h], [0.999999, 0.000001]])])
+    for u, v in uv:
+        k00, k01, k10, k11, w00, w01, w10, w11 = texel_square(meta, 0, u, v)
+        x = (u - np.floor(u)) * w - 0.5
+        y = (1.0 - (v - np.floor(v))) * h - 0.5
+        x0, y0 = int(np.floor(x)), int(np.floor(y))
+        fx, fy = x - x0, y - y0
+        ya, yb, xa, xb = y0 % h, (y0 + 1) % h, x0 % w, (x0 + 1) % w
+        want = ((1 - fx) * (1 - fy) * image[ya, xa] + fx * (1 - fy) * image[ya, xb]
+                + (1 - fx) * fy * image[yb, xa] + fx * fy * image[yb, xb])
+        got = (w00 * tex[k00:k00 + nc] + w01 * tex[k01:k01 + nc] + w10 * tex[k10:k10 + nc]
+               + w11 * tex[k11:k11 + nc])
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)
+        assert w00 + w01 + w10 + w11 == pytest.approx(1.0)
+
+
 @pytest.mark.parametrize("fmt", ["png", "exr"])
 def test_albedo_texture_follows_the_image(tmp_path, fmt):
     """A 4 x 4 grid of albedos on the plane: away from cell edges every pixel is
