@@ -20,6 +20,7 @@ import itertools
 import threading
 
 import llvmlite.binding as ll
+from llvmlite import ir
 import numba
 import numpy as np
 from numba.core import cgutils, codegen, compiler, datamodel, types
@@ -555,6 +556,33 @@ def fetch_add(typingctx, counter, value):
         return builder.atomic_rmw("add", first, step, "monotonic")
 
     return types.int64(counter, value), codegen
+
+
+@intrinsic
+def prefetch(typingctx, array, index):
+    """Ask the caches for the line holding ``array[index]`` (a tuple of ``ndim`` indices, within
+    bounds: none is checked) and go on without waiting (LLVM's ``llvm.prefetch``, for reading,
+    to every level). A lookup at scattered places of a large table prefetches its next items'
+    lines in a pass of their own, so that their waits on memory overlap."""
+    if not (isinstance(array, types.Array) and isinstance(index, types.BaseTuple)
+            and len(index) == array.ndim
+            and all(isinstance(t, types.Integer) for t in index)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        aryty, idxty = signature.args
+        ary = context.make_array(aryty)(context, builder, args[0])
+        idx = [context.cast(builder, v, t, types.intp) for v, t in
+               zip(cgutils.unpack_tuple(builder, args[1], count=len(idxty)), idxty)]
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, idx, wraparound=False)
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [ptr.type, i32, i32, i32]),
+            "llvm.prefetch.p0")
+        builder.call(fn, [ptr, i32(0), i32(3), i32(1)])  # read, keep in all levels, data
+        return context.get_dummy_value()
+
+    return types.none(array, index), codegen
 
 
 @intrinsic

@@ -21,7 +21,8 @@ from numba import typeof
 from numba.core import types
 
 from brdf._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_threads,
-                       inline_kernel, kernel, nogil_kernel, share_queue, threaded_kernel)
+                       inline_kernel, kernel, nogil_kernel, prefetch, share_queue,
+                       threaded_kernel)
 from brdf._threads import SERIAL_SAMPLES, serial_below, thread_count, using_threads
 
 
@@ -195,6 +196,34 @@ def test_a_kernel_linked_as_lowered_leaves_its_module_to_its_callers(linked):
     calls = [line for line in str(cres.library._final_module).splitlines()
              if " call " in line and callee in line]
     assert bool(calls) == (linked == AS_LOWERED)
+
+
+def _gathered(a, idx):
+    s = 0.0
+    for k in range(idx.shape[0]):
+        prefetch(a, (idx[k], 1))
+    for k in range(idx.shape[0]):
+        s += a[idx[k], 1]
+    return s
+
+
+def test_prefetch_asks_llvm_for_the_line_and_changes_no_result():
+    compiled = kernel(_gathered)
+    compiled._cache = numba.core.caching.NullCache()  # compile here, so the IR is there
+    a = np.arange(40.0).reshape(20, 2)
+    idx = np.array([3, 17, 0, 19])
+    assert compiled(a, idx) == a[idx, 1].sum()
+    (cres,) = compiled.overloads.values()
+    calls = [line for line in str(cres.library._final_module).splitlines()
+             if "call" in line and "llvm.prefetch" in line]
+    assert calls and "i32 0, i32 3, i32 1" in calls[0]
+
+
+def test_prefetch_takes_one_integer_index_per_axis():
+    with pytest.raises(numba.core.errors.TypingError):
+        kernel(lambda a: prefetch(a, (1,)))(np.zeros((2, 2)))
+    with pytest.raises(numba.core.errors.TypingError):
+        kernel(lambda a: prefetch(a, (1, 0.5)))(np.zeros((2, 2)))
 
 
 @pytest.mark.parametrize("linked", ["optimized", "", True])

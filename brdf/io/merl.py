@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel, threaded_kernel
+from .._jit import kernel, prefetch, threaded_kernel
 from ..errors import FormatError, InputError
 from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
 from ..sampling import arctan2
@@ -468,18 +468,41 @@ def _pair_coordinates(wi, wo, k, out, inside):
 
 
 @kernel
-def trilinear_pair(grid, filled, ix, iy, iz, ox, oy, oz, out, k):
-    """Trilinear lookup of one pair above the horizon into ``out[k, :3]`` over the valid corners
-    of its cell (weights renormalised), the nearest valid sample (``filled``) where no corner
-    with positive weight is valid. Returns whether every channel had a valid corner. The
-    array lookup and the renderer's measured materials share it."""
-    n0, n1, n2, _ = grid.shape
-    u, v, w = grid_coordinates(ix, iy, iz, ox, oy, oz)
+def _cell(u, v, w, shape):
+    """Lower corner (i0, j0, p0) of the cell holding grid coordinates (u, v, w), the fractions
+    within it, and the upper phi_d index p1 (wrapping over pi)."""
+    n0, n1, n2 = shape[0], shape[1], shape[2]
     i0, fu = _clamped_cell(u, n0)
     j0, fv = _clamped_cell(v, n1)
     p0 = min(int(w), n2 - 1)
-    fw = w - p0
     p1 = p0 + 1 if p0 + 1 < n2 else 0  # phi_d wraps over pi
+    return i0, j0, p0, p1, fu, fv, w - p0
+
+
+@kernel
+def fetch_cell(grid, ix, iy, iz, ox, oy, oz, out, k):
+    """The first half of a trilinear lookup of a pair above the horizon: its grid coordinates
+    into ``out[k, :3]``, and its cell's corners asked of the caches (prefetched) without
+    waiting for them; :func:`trilinear_at` finishes it. A lookup waits on memory for its
+    corners (the grid is 35 MB), so a batch of lookups fetches every cell first, and the waits
+    overlap."""
+    u, v, w = grid_coordinates(ix, iy, iz, ox, oy, oz)
+    out[k, 0], out[k, 1], out[k, 2] = u, v, w
+    i0, j0, p0, p1, _, _, _ = _cell(u, v, w, grid.shape)
+    for di in range(2):
+        for dj in range(2):
+            prefetch(grid, (i0 + di, j0 + dj, p0, 0))
+            prefetch(grid, (i0 + di, j0 + dj, p1, 2))
+
+
+@kernel
+def trilinear_at(grid, filled, out, k):
+    """Trilinear lookup at the grid coordinates in ``out[k, :3]`` (:func:`fetch_cell`) into
+    ``out[k, :3]``, over the valid corners of its cell (weights renormalised), the nearest
+    valid sample (``filled``) where no corner with positive weight is valid. Returns whether
+    every channel had a valid corner."""
+    u, v, w = out[k, 0], out[k, 1], out[k, 2]
+    i0, j0, p0, p1, fu, fv, fw = _cell(u, v, w, grid.shape)
     acc = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     for di in range(2):
         wu = fu if di else 1.0 - fu
@@ -498,16 +521,28 @@ def trilinear_pair(grid, filled, ix, iy, iz, ox, oy, oz, out, k):
     return ok
 
 
+#: Pairs a lookup's thread fetches (:func:`fetch_cell`) before it looks them up: their cells'
+#: 512 lines fit the first-level cache
+FETCHED = 64
+
+
 @threaded_kernel("wi", "wo", "out", "inside")
 def _trilinear(grid, filled, wi, wo, out, inside):
-    """Trilinear lookup of every pair (:func:`trilinear_pair`); 0 below the horizon."""
-    for k in range(wi.shape[0]):
-        if wi[k, 2] <= 0.0 or wo[k, 2] <= 0.0:
-            out[k, :] = 0.0
-            inside[k] = False
-            continue
-        inside[k] = trilinear_pair(grid, filled, wi[k, 0], wi[k, 1], wi[k, 2],
-                                   wo[k, 0], wo[k, 1], wo[k, 2], out, np.int64(k))
+    """Trilinear lookup of every pair (:func:`fetch_cell`, then :func:`trilinear_at`); 0 below
+    the horizon."""
+    n = wi.shape[0]
+    for k0 in range(0, n, FETCHED):
+        k1 = min(k0 + FETCHED, n)
+        for k in range(k0, k1):
+            inside[k] = wi[k, 2] > 0.0 and wo[k, 2] > 0.0
+            if inside[k]:
+                fetch_cell(grid, wi[k, 0], wi[k, 1], wi[k, 2], wo[k, 0], wo[k, 1], wo[k, 2], out,
+                           np.int64(k))
+        for k in range(k0, k1):
+            if inside[k]:
+                inside[k] = trilinear_at(grid, filled, out, np.int64(k))
+            else:
+                out[k, 0] = out[k, 1] = out[k, 2] = 0.0
 
 
 @threaded_kernel("wi", "wo", "out", "inside")

@@ -2,7 +2,7 @@
 
 A material is either a parametric model, evaluated, sampled and weighted by exactly the
 kernels of :mod:`brdf.models._kernels` (no second copy of any formula), or a measured table on
-the MERL grid, evaluated by :func:`brdf.io.merl.trilinear_pair` and importance-sampled through a
+the MERL grid, evaluated by :func:`brdf.io.merl.trilinear_at` and importance-sampled through a
 tabulated distribution of f cos(theta) (see :func:`tabulate`).
 
 Directions reach these kernels in the local shading frame. In the path tracer ``v`` is the
@@ -30,7 +30,7 @@ from collections import namedtuple
 import numpy as np
 
 from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
-from ..io.merl import trilinear_pair
+from ..io.merl import fetch_cell, trilinear_at
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, continuous,
                                cosine_over_pdf, mixture_batch)
 from ..sampling import arccos, arctan2, sincos_turn, square_to_cosine_hemisphere
@@ -196,16 +196,25 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
         j = lists[3, t]
         pair[PDF, j] = _measured_pdf(cdf, pair[GIVEN, j], pair[GIVEN + 1, j], pair[GIVEN + 2, j],
                                      pair[DRAWN, j], pair[DRAWN + 1, j], pair[DRAWN + 2, j])
+    # every lookup's cell fetched first, then looked up (see fetch_cell); f holds a lane's
+    # grid coordinates in between
     for s in (PAIR, DRAW):
         ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
+        e = q[s]
         for t in range(nev):
             j = ev[t]
-            for c in range(3):
-                f[s, j, c] = 0.0
-            e = q[s]
             if e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0:
-                trilinear_pair(grid, filled, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j],
-                               e[GIVEN, j], e[GIVEN + 1, j], e[GIVEN + 2, j], f[s], j)
+                fetch_cell(grid, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j], e[GIVEN, j],
+                           e[GIVEN + 1, j], e[GIVEN + 2, j], f[s], j)
+    for s in (PAIR, DRAW):
+        ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
+        e = q[s]
+        for t in range(nev):
+            j = ev[t]
+            if e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0:
+                trilinear_at(grid, filled, f[s], j)
+            else:
+                f[s, j, 0] = f[s, j, 1] = f[s, j, 2] = 0.0
     cosine_over_pdf(lists[4], sampled, d[DRAWN + 2], d[PDF], f[DRAW])
 
 
