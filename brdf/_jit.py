@@ -280,18 +280,34 @@ def _without_literals(dispatcher, keep=()):
     return _inputs_as_writable(dispatcher)
 
 
+def _writable(t):
+    """Type ``t`` with every read-only array in it, within tuples too, typed writable."""
+    if isinstance(t, types.Array):
+        return t.copy(readonly=False) if not t.mutable else t
+    if not isinstance(t, types.BaseTuple):
+        return t
+    members = [_writable(m) for m in t.types]
+    if all(a is b for a, b in zip(members, t.types)):
+        return t
+    uniform = all(m == members[0] for m in members)
+    if isinstance(t, types.BaseNamedTuple):
+        return (types.NamedUniTuple(members[0], len(members), t.instance_class) if uniform
+                else types.NamedTuple(members, t.instance_class))
+    return types.UniTuple(members[0], len(members)) if uniform else types.Tuple(members)
+
+
 def _inputs_as_writable(dispatcher):
-    """``dispatcher``, typing a read-only array argument from Python as a writable one.
+    """``dispatcher``, typing a read-only array argument from Python as a writable one, within
+    a tuple too (the renderer's scene arrays).
 
     numba compiles a kernel again for each array flagged read-only (a broadcast view, a table
-    read with ``np.frombuffer``), and callers mixed both, so kernels were compiled two to four
-    times. Kernels write only the output arrays their drivers
-    allocate, never an input, so the flag changes nothing in the machine code."""
+    read with ``np.frombuffer``, a MERL table's grid), and callers mixed both, so kernels were
+    compiled two to four times. Kernels write only the output arrays their drivers allocate,
+    never an input, so the flag changes nothing in the machine code."""
     typeof = dispatcher.typeof_pyval
 
     def typeof_pyval(value):
-        t = typeof(value)
-        return t.copy(readonly=False) if isinstance(t, types.Array) and not t.mutable else t
+        return _writable(typeof(value))
 
     dispatcher.typeof_pyval = typeof_pyval
     return dispatcher

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections import namedtuple
 
 import llvmlite.binding
 import numba
@@ -100,6 +101,27 @@ def test_read_only_inputs_share_the_writable_specialisation():
     assert len(_doubled.overloads) == 1
     # the arrays themselves keep their flag
     assert not view.flags.writeable and a.flags.writeable
+
+
+_Pair = namedtuple("_Pair", "x y")
+
+
+@kernel
+def _pair_sum(p, t):
+    return p.x.sum() + p.y.sum() + t[0].sum() + t[1]
+
+
+def test_read_only_arrays_in_tuples_share_the_writable_specialisation():
+    """The renderer passes its scene as named tuples of arrays, some of them a table's
+    read-only arrays."""
+    a, b = np.arange(3.0), np.ones(2)
+    frozen = a.view()
+    frozen.flags.writeable = False
+    assert _pair_sum(_Pair(a, b), (a, 2.0)) == 3.0 + 2.0 + 3.0 + 2.0
+    for pair, plain in ((_Pair(frozen, b), (a, 2.0)), (_Pair(a, frozen[:2]), (frozen, 2.0)),
+                        (_Pair(frozen, frozen[:2]), (frozen, 2.0))):
+        assert _pair_sum(pair, plain) == pair.x.sum() + pair.y.sum() + 3.0 + 2.0
+    assert len(_pair_sum.overloads) == 1
 
 
 @kernel
