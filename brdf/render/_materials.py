@@ -25,6 +25,8 @@ channels).
 """
 
 import math
+import threading
+import weakref
 from collections import namedtuple
 
 import numpy as np
@@ -257,6 +259,22 @@ def tabulate(table):
         cdf[b, 1:] = np.cumsum(w)
         cdf[b, -1] = 1.0
     return cdf
+
+
+#: :func:`tabulate`'s CDFs of each read-only table still alive (a MerlTable never changes)
+_TABULATED = weakref.WeakKeyDictionary()
+_TABULATING = threading.Lock()
+
+
+def tabulated(table):
+    """:func:`tabulate` of a read-only MERL table, computed once for as long as the table lives:
+    a scene is compiled at every render, and tabulating took 70 ms of a MERL scene's 0.7 s."""
+    with _TABULATING:
+        cdf = _TABULATED.get(table)
+        if cdf is None:
+            cdf = _TABULATED[table] = tabulate(table)
+            cdf.setflags(write=False)
+        return cdf
 
 
 #: Directions per batch of the array drivers below.

@@ -781,20 +781,26 @@ class _MaterialTable:
                 row[M.GRID] = len(grids)
                 grids.append(np.asarray(t.grid, float))
                 filled.append(np.asarray(t.filled, float))
-                tables.append(M.tabulate(t))
+                tables.append(M.tabulated(t))
             row[[M.K1, M.O1, M.P1, M.B1]] = len(kinds), len(offs), len(params), len(bind)
             rows.append(row)
         grid_shape = (1, 1, 1, 3)  # a placeholder the kernels never read
         return M.Materials(
             np.array(rows, np.int64).reshape(-1, 11),
             np.array(kinds, np.int64), np.array(offs, np.int64), np.array(params, float),
-            np.stack(grids) if grids else np.zeros((1,) + grid_shape),
-            np.stack(filled) if filled else np.zeros((1,) + grid_shape),
-            np.stack(tables) if tables else np.zeros((1, M.TAB_THETA_I,
-                                                      M.TAB_THETA * M.TAB_PHI + 1)),
+            _stacked(grids, (1,) + grid_shape), _stacked(filled, (1,) + grid_shape),
+            _stacked(tables, (1, M.TAB_THETA_I, M.TAB_THETA * M.TAB_PHI + 1)),
             np.array(bind, np.int64).reshape(-1, 4),
             np.concatenate(tex) if tex else np.zeros(1),
             np.array(texmeta, np.int64).reshape(-1, 4))
+
+
+def _stacked(arrays, empty):
+    """``arrays`` stacked on a new first axis, a view of the one array if there is one (a MERL
+    grid is 35 MB, and a scene is compiled at every render); zeros shaped ``empty`` if none."""
+    if not arrays:
+        return np.zeros(empty)
+    return arrays[0][None] if len(arrays) == 1 else np.stack(arrays)
 
 
 class _RGB:

@@ -224,6 +224,24 @@ def test_measured_sample_reports_the_density_of_its_direction(theta, phi):
     assert np.mean(same) > 0.9999, np.mean(same)
 
 
+def test_a_measured_scene_compiles_without_copying_or_tabulating_its_table_again():
+    """A scene is compiled at every render: its one MERL table's grids are views, and the
+    table's sampling CDFs are computed once while the table lives."""
+    from brdf.render import _materials as M
+    table = brdf.measure(brdf.parse("lambert(albedo=[0.3,0.3,0.3]) + ggx(alpha=0.2)"), "merl")
+    scene = render.Scene(shapes=[render.Sphere((0, 0, 0), 1, table)])
+    first, again = scene.compile().mats, scene.compile().mats
+    assert np.shares_memory(first.grids, table.grid) and np.shares_memory(first.filled,
+                                                                            table.filled)
+    assert again.tables.base is first.tables.base is M.tabulated(table)
+    np.testing.assert_array_equal(M.tabulated(table), M.tabulate(table))
+    other = brdf.measure(brdf.parse("lambert(albedo=[0.6,0.3,0.3])"), "merl")
+    two = render.Scene(shapes=[render.Sphere((0, 0, 0), 1, table),
+                               render.Sphere((3, 0, 0), 1, other)]).compile().mats
+    np.testing.assert_array_equal(two.grids[1], other.grid)
+    assert not np.shares_memory(two.grids, table.grid)
+
+
 def test_same_seed_same_bytes_any_thread_count():
     scene = _glossy_scene("lambert(albedo=0.5) + ggx(alpha=0.3)")
     one = render.render(scene, spp=8, size=16, seed=11, threads=1)
