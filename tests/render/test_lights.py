@@ -174,7 +174,7 @@ def test_ies_horizontal_angles_turn_counterclockwise_seen_from_above(tmp_path):
 
 # --- spot and directional lights --------------------------------------------------------------
 
-@pytest.mark.parametrize("exponent", [2.0, 7.0])
+@pytest.mark.parametrize("exponent", [0.0, 2.0, 7.0, 2.5])
 def test_spot_light_falloff_and_cutoff(exponent):
     """Spot 1 above the plane, pointing down, cutoff 35 degrees: L = f I cos^n(angle) cos / r^2
     inside the cone (the angle to the axis is the angle of incidence), black outside."""
@@ -189,6 +189,18 @@ def test_spot_light_falloff_and_cutoff(exponent):
     expected = f * (3.0 * l[..., 1] ** exponent * l[..., 1] / dist ** 2)[..., None]
     np.testing.assert_allclose(r.image[lit], expected[lit], rtol=1e-6)
     assert np.all(r.image[dark] == 0.0)
+
+
+def test_spot_falloff_by_squaring_is_pow_to_rounding():
+    """Whole exponents up to 64 are raised to by squaring, within k ulp of pow for c^k (each
+    squaring doubles the relative error before it); c^2 is c * c to the bit."""
+    from brdf.render._lights import _cos_power
+    c = np.random.default_rng(6).uniform(0.0, 1.0, 300)
+    for k in range(65):
+        got = np.array([_cos_power(x, float(k), k) for x in c])
+        np.testing.assert_allclose(got, c ** float(k), rtol=max(k, 1) * 2.3e-16, atol=0.0)
+    assert all(_cos_power(x, 2.0, 2) == x * x for x in c)
+    assert _cos_power(0.3, 2.5, -1) == 0.3 ** 2.5
 
 
 def test_directional_light():
