@@ -153,14 +153,18 @@ def _env_pixel(lights, x, y, z):
 
 @inline_kernel
 def _env_bilinear(env, u, v):
-    """The map's RGB at (u, v) (u = phi / 2 pi, periodic; v = theta / pi), bilinear between
-    pixels as Mitsuba 3's envmap emitter interpolates them (src/emitters/envmap.cpp,
-    eval_spectrum): pixel centres at u = (j + 1/2) / w, rows at v = i / (h - 1)."""
+    """The map's RGB at (u, v) (u = phi / 2 pi in [0, 1], its columns periodic; v = theta /
+    pi), bilinear between pixels as Mitsuba 3's envmap emitter interpolates them
+    (src/emitters/envmap.cpp, eval_spectrum): pixel centres at u = (j + 1/2) / w, rows at v =
+    i / (h - 1)."""
     h, w = env.shape[0], env.shape[1]
     x = u * w - 0.5
     x0 = math.floor(x)
     a = x - x0
-    j0 = int(x0) % w
+    # u lies in [0, 1], so x0 in [-1, w - 1]: the columns wrap without an integer division
+    # (tens of cycles); the clamp keeps a NaN's column in range
+    j0 = min(max(int(x0), -1), w - 1)
+    j0 = j0 if j0 >= 0 else w - 1
     j1 = j0 + 1 if j0 < w - 1 else 0
     y = min(max(v, 0.0), 1.0) * (h - 1)
     i0 = max(min(int(y), h - 2), 0)

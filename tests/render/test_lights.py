@@ -228,6 +228,28 @@ def _write_map(path, image):
     return str(path)
 
 
+def test_env_bilinear_against_numpy_with_wrapping_columns():
+    """The map's bilinear lookup (Mitsuba 3's envmap: pixel centres at u = (j + 1/2) / w, rows
+    at v = i / (h - 1)) against a numpy twin, over u in [0, 1] and at its ends, where the
+    columns wrap."""
+    from brdf.render._lights import _env_bilinear
+    h, w = 6, 9
+    env = np.random.default_rng(7).random((h, w, 3))
+    u = np.concatenate([np.random.default_rng(8).random(500),
+                        [0.0, 0.5 / w, 1.0 - 0.5 / w, np.nextafter(1.0, 0.0), 1.0]])
+    v = np.random.default_rng(9).random(u.size)
+    for a, b in zip(u, v):
+        x = a * w - 0.5
+        x0 = int(np.floor(x))
+        y = b * (h - 1)
+        i0 = min(int(y), h - 2)
+        fx, fy = x - x0, y - i0
+        ja, jb = x0 % w, (x0 + 1) % w
+        want = ((1 - fx) * (1 - fy) * env[i0, ja] + fx * (1 - fy) * env[i0, jb]
+                + (1 - fx) * fy * env[i0 + 1, ja] + fx * fy * env[i0 + 1, jb])
+        np.testing.assert_allclose(_env_bilinear(env, a, b), want, rtol=1e-13, atol=1e-15)
+
+
 def test_constant_map_renders_like_constant_environment(tmp_path):
     """A map of 0.25 everywhere scaled by 2 is the constant environment 0.5 (its importance
     sampling reduces to sin(theta), the uniform density over the sphere)."""
