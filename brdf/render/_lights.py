@@ -376,8 +376,8 @@ def pick_light(pmf, u):
 
 @kernel
 def _cos_power(c, n, k):
-    """c^n for a spotlight's falloff, by squaring where n is a whole number k (k = -1: libm's
-    pow, 13 ns a call, most of a spot's light sample; c^2 is then c * c, to the bit)."""
+    """c^n for a spotlight's falloff: by squaring where n is a whole number k (c^2 is c * c,
+    to the bit), else (k = -1) libm's pow, which costs 13 ns a call."""
     if k < 0:
         return c ** n
     r = 1.0

@@ -58,9 +58,9 @@ DEFENSIVE = 0.2
 @inline_kernel
 def texel_square(meta, t, u, v):
     """The four texels about (u, v) of texture t, wrapping (repeat), and their bilinear weights:
-    the flat indices of their first channels (lower row's left and right, then the upper row's)
-    and the weights in that order. v = 0 is the image's bottom row, as in OpenGL and glTF's
-    flipped convention of PNG rows."""
+    the flat indices of their first channels (the left and right texel of the upper image row,
+    then of the row below it) and the weights in that order. v = 0 is the image's bottom row,
+    as in OpenGL and glTF's flipped convention of PNG rows."""
     off, w, h, nc = meta[t, 0], meta[t, 1], meta[t, 2], meta[t, 3]
     x = (u - math.floor(u)) * w - 0.5
     y = (1.0 - (v - math.floor(v))) * h - 0.5
