@@ -198,25 +198,23 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
         j = lists[3, t]
         pair[PDF, j] = _measured_pdf(cdf, pair[GIVEN, j], pair[GIVEN + 1, j], pair[GIVEN + 2, j],
                                      pair[DRAWN, j], pair[DRAWN + 1, j], pair[DRAWN + 2, j])
-    # every lookup's cell fetched first, then looked up (see fetch_cell); f holds a lane's
-    # grid coordinates in between
-    for s in (PAIR, DRAW):
-        ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
-        e = q[s]
-        for t in range(nev):
-            j = ev[t]
-            if e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0:
-                fetch_cell(grid, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j], e[GIVEN, j],
-                           e[GIVEN + 1, j], e[GIVEN + 2, j], f[s], j)
-    for s in (PAIR, DRAW):
-        ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
-        e = q[s]
-        for t in range(nev):
-            j = ev[t]
-            if e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0:
-                trilinear_at(grid, filled, f[s], j)
-            else:
-                f[s, j, 0] = f[s, j, 1] = f[s, j, 2] = 0.0
+    # every lookup's cell fetched first (stage 0), then looked up (see fetch_cell); f holds a
+    # lane's grid coordinates in between
+    for stage in range(2):
+        for s in (PAIR, DRAW):
+            ev, nev = (lists[2], counts[2]) if s == PAIR else (lists[4], sampled)
+            e = q[s]
+            for t in range(nev):
+                j = ev[t]
+                above = e[DRAWN + 2, j] > 0.0 and e[GIVEN + 2, j] > 0.0
+                if stage == 0:
+                    if above:
+                        fetch_cell(grid, e[DRAWN, j], e[DRAWN + 1, j], e[DRAWN + 2, j],
+                                   e[GIVEN, j], e[GIVEN + 1, j], e[GIVEN + 2, j], f[s], j)
+                elif above:
+                    trilinear_at(grid, filled, f[s], j)
+                else:
+                    f[s, j, 0] = f[s, j, 1] = f[s, j, 2] = 0.0
     cosine_over_pdf(lists[4], sampled, d[DRAWN + 2], d[PDF], f[DRAW])
 
 
