@@ -29,6 +29,7 @@ import numpy as np
 
 from .._jit import allocating_kernel, inline_kernel, kernel
 from ._intersect import SPHERE
+from ._materials import wrapped_texels
 from .. import sampling
 
 POINT, SPOT, DIRECTIONAL, AREA, GONIO, ENV = 0, 1, 2, 3, 4, 5
@@ -158,14 +159,7 @@ def _env_bilinear(env, u, v):
     (src/emitters/envmap.cpp, eval_spectrum): pixel centres at u = (j + 1/2) / w, rows at v =
     i / (h - 1)."""
     h, w = env.shape[0], env.shape[1]
-    x = u * w - 0.5
-    x0 = math.floor(x)
-    a = x - x0
-    # u lies in [0, 1], so x0 in [-1, w - 1]: the columns wrap without an integer division
-    # (tens of cycles); the clamp keeps a NaN's column in range
-    j0 = min(max(int(x0), -1), w - 1)
-    j0 = j0 if j0 >= 0 else w - 1
-    j1 = j0 + 1 if j0 < w - 1 else 0
+    j0, j1, a = wrapped_texels(u * w - 0.5, w)
     y = min(max(v, 0.0), 1.0) * (h - 1)
     i0 = max(min(int(y), h - 2), 0)
     i1 = min(i0 + 1, h - 1)

@@ -56,6 +56,16 @@ DEFENSIVE = 0.2
 # --- textures ---------------------------------------------------------------------------------
 
 @inline_kernel
+def wrapped_texels(x, n):
+    """The texels either side of x in a periodic row of n texels with centres at 0 .. n - 1,
+    for x in [-1/2, n - 1/2], and x's fraction past the first. floor(x) lies in [-1, n - 1], so
+    they wrap with selects rather than an integer division (tens of cycles); the clamp keeps a
+    NaN's index in range."""
+    i = min(max(int(math.floor(x)), -1), n - 1)
+    return (i if i >= 0 else n - 1), (i + 1 if i + 1 < n else 0), x - i
+
+
+@inline_kernel
 def texel_square(meta, t, u, v):
     """The four texels about (u, v) of texture t, wrapping (repeat), and their bilinear weights:
     the flat indices of their first channels (the left and right texel of the upper image row,
@@ -64,14 +74,8 @@ def texel_square(meta, t, u, v):
     off, w, h, nc = meta[t, 0], meta[t, 1], meta[t, 2], meta[t, 3]
     x = (u - math.floor(u)) * w - 0.5
     y = (1.0 - (v - math.floor(v))) * h - 0.5
-    # x lies in [-1/2, w - 1/2] and y in [-1/2, h - 1/2], so the corners wrap without an
-    # integer division (four a lookup cost tens of cycles each); the clamp keeps a NaN
-    # coordinate's index in range
-    x0 = min(max(int(math.floor(x)), -1), w - 1)
-    y0 = min(max(int(math.floor(y)), -1), h - 1)
-    fx, fy = x - x0, y - y0
-    xa, xb = (x0 if x0 >= 0 else w - 1), (x0 + 1 if x0 + 1 < w else 0)
-    ya, yb = (y0 if y0 >= 0 else h - 1), (y0 + 1 if y0 + 1 < h else 0)
+    xa, xb, fx = wrapped_texels(x, w)
+    ya, yb, fy = wrapped_texels(y, h)
     return (off + (ya * w + xa) * nc, off + (ya * w + xb) * nc, off + (yb * w + xa) * nc,
             off + (yb * w + xb) * nc, (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy),
             (1.0 - fx) * fy, fx * fy)
