@@ -116,6 +116,20 @@ def _cell_solid_angle(i):
     return (_EDGE_COS[i] - _EDGE_COS[i + 1]) * (2.0 * math.pi / TAB_PHI)
 
 
+@kernel
+def _cell_density(row, c):
+    """Density per solid angle of cell c of a bin's CDF ``row``: its probability over its solid
+    angle."""
+    return (row[c + 1] - row[c]) / _cell_solid_angle(c // TAB_PHI)
+
+
+@kernel
+def _defensive_mixture(tab, lz):
+    """Density of the defensive mixture at l above the horizon (with v above it too): the
+    tabulated part's density ``tab`` there, and cosine sampling's."""
+    return (1.0 - DEFENSIVE) * tab + DEFENSIVE * lz / math.pi
+
+
 @inline_kernel
 def _tab_pdf(cdf, vx, vy, vz, lx, ly, lz):
     """Density of the tabulated part at l given v: cell probability over cell solid angle, in
@@ -132,8 +146,7 @@ def _tab_pdf(cdf, vx, vy, vz, lx, ly, lz):
     phi = phi + 2.0 * math.pi if phi < 0.0 else phi
     it = min(int(arccos(lz) / (0.5 * math.pi) * TAB_THETA), TAB_THETA - 1)
     ip = min(int(phi / (2.0 * math.pi) * TAB_PHI), TAB_PHI - 1)
-    c = it * TAB_PHI + ip
-    return (cdf[b, c + 1] - cdf[b, c]) / _cell_solid_angle(it)
+    return _cell_density(cdf[b], it * TAB_PHI + ip)
 
 
 @inline_kernel
@@ -155,14 +168,14 @@ def _tab_sample(cdf, vx, vy, vz, u1, u2):
     # phi in turns: the cell's, from the azimuth of v
     sin_phi, cos_phi = sincos_turn((ip + u2) / TAB_PHI + arctan2(vy, vx) / (2.0 * math.pi))
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    return r * cos_phi, r * sin_phi, z, width / _cell_solid_angle(it)
+    return r * cos_phi, r * sin_phi, z, _cell_density(row, c)
 
 
 @inline_kernel
 def _measured_pdf(cdf, vx, vy, vz, lx, ly, lz):
     if lz <= 0.0 or vz <= 0.0:
         return 0.0
-    return (1.0 - DEFENSIVE) * _tab_pdf(cdf, vx, vy, vz, lx, ly, lz) + DEFENSIVE * lz / math.pi
+    return _defensive_mixture(_tab_pdf(cdf, vx, vy, vz, lx, ly, lz), lz)
 
 
 # --- the material interface of the integrator -------------------------------------------------
@@ -190,8 +203,7 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
         else:
             x, y, z, tab = _tab_sample(cdf, vx, vy, vz, (a - DEFENSIVE) / (1.0 - DEFENSIVE), b)
             # _measured_pdf, with the tabulated part's density known from the sample's cell
-            pdf = (((1.0 - DEFENSIVE) * tab + DEFENSIVE * z / math.pi)
-                   if z > 0.0 and vz > 0.0 else 0.0)
+            pdf = _defensive_mixture(tab, z) if z > 0.0 and vz > 0.0 else 0.0
         d[DRAWN, j], d[DRAWN + 1, j], d[DRAWN + 2, j] = x, y, z
         d[PDF, j] = pdf
         for c in range(3):
