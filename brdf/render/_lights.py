@@ -13,8 +13,7 @@ rows' edges ``env_cos (h + 1,)`` and the cos and sin of its columns' edges
 Fields of ``lf`` by type (positions and directions in world space, colours RGB):
 
 - POINT: position 0-2, intensity I 3-5 (W/sr), attenuation a, b, c 6-8;
-- SPOT: as POINT, then the axis 9-11, cos(cutoff) 12, falloff exponent 13, the exponent again
-  where it is a whole number up to 64, else -1 (14);
+- SPOT: as POINT, then the axis 9-11, cos(cutoff) 12, falloff exponent 13;
 - DIRECTIONAL: direction of travel 0-2, irradiance E 3-5 (W/m^2 normal to the beam);
 - AREA: primitive 0, emitting sides 1 (1 front, 2 back, 3 both), area 2, radiance L 3-5;
 - GONIO: as POINT, then the axis of theta = 0 9-11, the axis of phi = 0 12-14, table 15;
@@ -369,11 +368,12 @@ def pick_light(pmf, u):
 
 
 @kernel
-def _cos_power(c, n, k):
-    """c^n for a spotlight's falloff: by squaring where n is a whole number k (c^2 is c * c,
-    to the bit), else (k = -1) libm's pow, which costs 13 ns a call."""
-    if k < 0:
+def _cos_power(c, n):
+    """c^n for a spotlight's falloff: by squaring where n is a whole number up to 64 (c^2 is
+    c * c, to the bit), else libm's pow, which costs 13 ns a call."""
+    if not (n <= 64.0 and n == math.floor(n)):
         return c ** n
+    k = int(n)
     r = 1.0
     while k > 0:
         if k & 1:
@@ -399,7 +399,7 @@ def sample_light(lights, geo, l, px, py, pz, u1, u2, li):
         if t == SPOT:
             ca = -(dx * f[9] + dy * f[10] + dz * f[11])
             # the spotlight of classic course notes: I cos^n(angle to the axis) inside the cone
-            s = s * _cos_power(ca, f[13], int(f[14])) if ca >= f[12] else 0.0
+            s = s * _cos_power(ca, f[13]) if ca >= f[12] else 0.0
         elif t == GONIO:
             s *= gonio_intensity(lights.gonio, f, -dx, -dy, -dz)
         for c in range(3):

@@ -624,8 +624,6 @@ def _pack_lights(scene, emitters, scale):
                     raise InputError(f"{where}: exponent must be >= 0")
                 f[12] = math.cos(math.radians(cutoff))
                 f[13] = exponent
-                # a whole exponent up to 64 (the default 2) is raised to by squaring
-                f[14] = exponent if exponent <= 64 and exponent == int(exponent) else -1.0
             elif isinstance(light, GoniometricLight):
                 kind = L.GONIO
                 a = _unit(light.axis, where + " axis")
