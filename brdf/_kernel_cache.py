@@ -11,7 +11,9 @@ algebra support, which imports scipy.linalg): 0.3-0.45 s of each command's start
 development host, for machine code that needs none of it. :func:`quick_loading` makes a kernel
 load without it, without compiling numba's runtime functions (:func:`_runtime_ready`) and
 without importing numba's modules to rebuild environments no kernel reads
-(:func:`_rebuild_env`); a kernel that does compile still gets all of it, from numba's compiler.
+(:func:`_rebuild_env`) and without parsing the module kept for linking it into other kernels
+until one does (:func:`_unserialize`); a kernel that does compile still gets all of it, from
+numba's compiler.
 
 This module holds no kernels and compiles none, so editing it leaves the cache valid; these
 hooks reach into numba internals (see :mod:`brdf._jit` for the version pin).
@@ -20,12 +22,13 @@ hooks reach into numba internals (see :mod:`brdf._jit` for the version pin).
 import hashlib
 import os
 import re
+import struct
 import sys
 import threading
 
 import llvmlite.binding as ll
 import numpy as np
-from numba.core import caching, environment, errors, types
+from numba.core import caching, codegen, environment, errors, types
 from numba.core.typing.typeof import Purpose, typeof, typeof_impl
 from numba.np import numpy_support
 
@@ -176,6 +179,81 @@ def _rebuild_env(modname, consts, env_name):
 _numba_rebuild_env = getattr(environment._rebuild_env, "__wrapped__", environment._rebuild_env)
 _rebuild_env.__wrapped__ = _numba_rebuild_env
 environment._rebuild_env = _rebuild_env
+
+
+def _defined_in_object(obj):
+    """Names of the functions and data that an ELF64 little-endian object file defines (the
+    symbols of its symbol table with a section, other than sections' and files' own), or None
+    for any other format."""
+    if obj[:6] != b"\x7fELF\x02\x01":
+        return None
+    # ELF-64 Object File Format 1.5: e_shoff at 0x28, e_shentsize and e_shnum at 0x3a; a
+    # section header (name, type, flags, address, offset, size, link, ...); a symbol (name,
+    # info, other, section index, value, size)
+    shoff, = struct.unpack_from("<Q", obj, 0x28)
+    entsize, count = struct.unpack_from("<HH", obj, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", obj, shoff + i * entsize)
+                for i in range(count)]
+    names = set()
+    for _, kind, _, _, offset, size, link, _, _, _ in sections:
+        if kind != 2:  # SHT_SYMTAB
+            continue
+        strings = sections[link][4]
+        for name, info, _, section, _, _ in struct.iter_unpack("<IBBHQQ",
+                                                                obj[offset:offset + size]):
+            # defined (not SHN_UNDEF), and not STT_SECTION (3) nor STT_FILE (4)
+            if name and section != 0 and (info & 0xF) not in (3, 4):
+                start = strings + name
+                names.add(obj[start:obj.index(b"\0", start)].decode())
+    return names
+
+
+# numba's own, also if this module is imported again (as for _rebuild_env below)
+_numba_unserialize = codegen.CPUCodeLibrary._unserialize.__func__
+_numba_unserialize = getattr(_numba_unserialize, "__wrapped__", _numba_unserialize)
+_numba_module_for_linking = getattr(codegen.CPUCodeLibrary._get_module_for_linking,
+                                    "__wrapped__", codegen.CPUCodeLibrary._get_module_for_linking)
+
+
+def _unserialize(cls, target_codegen, state):
+    """numba's ``CPUCodeLibrary._unserialize``, except that for this package's kernels stored as
+    machine code (ELF) the module for linking into other kernels is parsed from its bitcode
+    when a kernel first links it (:func:`_get_module_for_linking`), not at every load, and the
+    symbols the library defines are read from the machine code's symbol table.
+
+    Parsing the Cornell box's ``trace_tiles`` module (0.5 MB of bitcode) and walking its
+    symbols were 22 ms of the 31 ms its load took, in every ``brdf-fit render``; nothing links
+    an entry kernel at run time. The symbol table names the same 265 symbols as the module's
+    definitions (numba keeps them to answer which functions the library holds)."""
+    name, kind, data = state
+    names = None
+    if kind == "object" and getattr(_loading, "kernel", False):
+        names = _defined_in_object(data[0])
+    if names is None:
+        return _numba_unserialize(cls, target_codegen, state)
+    object_code, linking_bitcode = data
+    self = target_codegen.create_library(name)
+    self.enable_object_caching()
+    self._set_compiled_object(object_code)
+    self._linking_bitcode = linking_bitcode
+    self._finalize_final_module()
+    target_codegen._engine._defined_symbols |= names
+    return self
+
+
+def _get_module_for_linking(self):
+    """numba's ``CPUCodeLibrary._get_module_for_linking``, parsing first the bitcode that
+    :func:`_unserialize` left unparsed."""
+    bitcode = self.__dict__.pop("_linking_bitcode", None)
+    if bitcode is not None:
+        self._shared_module = ll.parse_bitcode(bitcode)
+    return _numba_module_for_linking(self)
+
+
+_unserialize.__wrapped__ = _numba_unserialize
+_get_module_for_linking.__wrapped__ = _numba_module_for_linking
+codegen.CPUCodeLibrary._unserialize = classmethod(_unserialize)
+codegen.CPUCodeLibrary._get_module_for_linking = _get_module_for_linking
 
 
 class _QuickLoad(caching.FunctionCache):

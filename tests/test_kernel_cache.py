@@ -82,3 +82,43 @@ def test_arguments_are_typed_as_numba_types_them():
     assert _argument_type(np.ma.masked_array([1.0])) is None
     assert _argument_type(np.zeros(2, "datetime64[Y]")[:0]) == typeof(
         np.zeros(2, "datetime64[Y]")[:0], Purpose.argument)
+
+
+def test_a_loaded_kernel_names_its_symbols_and_parses_its_module_when_linked():
+    """A kernel loaded from the cache takes the names it defines from its machine code's
+    symbol table (the module for linking it is parsed only when a caller links it); both must
+    give what numba's own load gives."""
+    import llvmlite.binding as ll
+    from numba.core.registry import cpu_target
+    from brdf import _kernel_cache
+    from brdf.models import _kernels
+    wi = np.tile([0.36, 0.48, 0.8], (4, 1))
+    brdf.parse("ggx(alpha=0.3)").eval(wi, wi)
+    dispatcher = _kernels.eval_array.dispatcher
+    cache = dispatcher._cache
+    codegen = cpu_target.target_context.codegen()
+    sig = next(iter(dispatcher.overloads.values())).signature.args
+    stored = cache._cache_file.load(cache._index_key(sig, codegen))  # as numba saved it
+    _, kind, (obj, bitcode) = stored[0]
+    defined = set()
+    module = ll.parse_bitcode(bitcode)
+    for values in (module.functions, module.global_variables):
+        defined |= {v.name for v in values if not v.is_declaration}
+    assert kind == "object" and defined
+    assert _kernel_cache._defined_in_object(obj) == defined
+    assert _kernel_cache._defined_in_object(b"\xcf\xfa\xed\xfe" + obj[4:]) is None  # Mach-O
+    # into an engine of its own, where its symbols are defined once
+    from numba.core.codegen import JITCPUCodegen
+    engine = JITCPUCodegen("test_kernel_cache")
+    _kernel_cache._loading.kernel = True
+    try:
+        library = engine.unserialize_library(stored[0])
+    finally:
+        _kernel_cache._loading.kernel = False
+    assert "_linking_bitcode" in library.__dict__  # not parsed yet
+    assert all(engine._engine.is_symbol_defined(n) for n in defined)
+    assert library.get_pointer_to_function(stored[1].llvm_func_name) != 0  # its entry
+    linked = library._get_module_for_linking()
+    assert {f.name for f in linked.functions if not f.is_declaration} == {
+        f.name for f in module.functions if not f.is_declaration}
+    assert "_linking_bitcode" not in library.__dict__
