@@ -52,7 +52,10 @@ def _package_stamp():
             path = os.path.join(root, name)
             with open(path, "rb") as f:
                 source = f.read()
-            if path == _JIT or path in _GENERATED_FROM or _KERNEL_MODULE.search(source):
+            # the substring test first: the regular expression alone, tried at every line of
+            # the package's 1.4 MB of source, was 5 of the stamp's 6.4 ms in every command
+            if (path == _JIT or path in _GENERATED_FROM
+                    or b"_jit" in source and _KERNEL_MODULE.search(source)):
                 h.update(os.path.relpath(path, _PACKAGE).encode() + b"\0" + source + b"\0")
     return h.hexdigest()
 
