@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError
+from ..io.files import openexr
 from .responses import response as _response
 
 __all__ = ["View", "read_view", "read_photo", "Photo", "MATERIAL_MARK"]
@@ -102,7 +103,7 @@ def read_photo(path, response="linear"):
 
 
 def _read_exr(path):
-    import OpenEXR
+    OpenEXR = openexr()
     try:
         with OpenEXR.File(str(path)) as f:
             ch = f.channels()

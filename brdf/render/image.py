@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FormatError, InputError
+from ..io.files import openexr
 
 #: Layers holding vectors, whose channels are named X, Y, Z
 _VECTOR_LAYERS = {"normal", "position"}
@@ -69,7 +70,7 @@ def read_image(source, what="image", channels=None, srgb=True):
 
 
 def _read_exr(path):
-    import OpenEXR
+    OpenEXR = openexr()
     try:
         # the channels are only readable while the file is open
         with OpenEXR.File(str(path)) as f:
@@ -106,7 +107,7 @@ def write_exr(path, rgb, layers=None, force=False):
     """Write float32 RGB (``(h, w, 3)``) and optional named layers (``{"albedo": (h, w, 3),
     "normal": (h, w, 3), "variance": (h, w, 3)}``, stored as ``albedo.R`` ..., ``normal.X`` ...)
     to an OpenEXR file, atomically; an existing file is replaced only with ``force``."""
-    import OpenEXR
+    OpenEXR = openexr()
     from ..io import atomic_output
     channels = {"RGB": np.ascontiguousarray(rgb, dtype=np.float32)}
     for name, arr in (layers or {}).items():

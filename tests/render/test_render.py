@@ -277,6 +277,35 @@ def test_exr_layers_round_trip(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+_POOL = """
+import sys
+import numpy as np
+import OpenEXR
+from brdf.render.image import read_image, write_exr
+if len(sys.argv) > 2:
+    OpenEXR.set_global_thread_count(int(sys.argv[2]))
+rgb = np.linspace(0.0, 1.0, 48 * 3).reshape(4, 12, 3)
+write_exr(sys.argv[1], rgb)
+same = bool(np.array_equal(read_image(sys.argv[1]), rgb.astype(np.float32)))
+print(OpenEXR.global_thread_count(), same)
+"""
+
+
+@pytest.mark.parametrize("threads, pool", [("1", "1"), ("2", "2"), ("2 3", "3")])
+def test_exr_files_are_compressed_on_the_packages_threads(tmp_path, threads, pool):
+    """The first EXR write sizes OpenEXR's pool of threads (empty by default: one thread
+    compresses the file) to the package's thread count, unless something set a size first."""
+    import os
+    import subprocess
+    import sys
+    count, *preset = threads.split()
+    done = subprocess.run([sys.executable, "-c", _POOL, str(tmp_path / "a.exr"), *preset],
+                          env={**os.environ, "NUMBA_NUM_THREADS": count}, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == [pool, "True"]
+
+
 def test_without_layers_the_same_image(tmp_path):
     """layers=False skips the variance, albedo and normal sums, and only them: the image is the
     same to the bit (a glossy sum and a texture-free Cornell box), and the EXR is RGB only."""
