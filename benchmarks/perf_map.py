@@ -38,21 +38,20 @@ _LIBRARIES = []
 
 def _recording():
     """Patch numba's code library to remember each library and, for one loaded from the
-    cache, its object code."""
-    unserialize = codegen.CPUCodeLibrary._unserialize.__func__
+    cache, its object code (handed to the library by ``_set_compiled_object``, whichever
+    code unserialises it: :mod:`brdf._kernel_cache` loads the package's kernels its own way)."""
+    set_compiled = codegen.CPUCodeLibrary._set_compiled_object
     finalize = codegen.CPUCodeLibrary.finalize
 
-    def unserialize_recorded(cls, cg, state):
-        library = unserialize(cls, cg, state)
-        if state[1] == "object":
-            _LIBRARIES.append((library, state[2][0]))
-        return library
+    def set_compiled_recorded(library, value):
+        set_compiled(library, value)
+        _LIBRARIES.append((library, value))
 
     def finalize_recorded(library):
         finalize(library)
         _LIBRARIES.append((library, None))
 
-    codegen.CPUCodeLibrary._unserialize = classmethod(unserialize_recorded)
+    codegen.CPUCodeLibrary._set_compiled_object = set_compiled_recorded
     codegen.CPUCodeLibrary.finalize = finalize_recorded
 
 
