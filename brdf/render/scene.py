@@ -8,7 +8,8 @@ radiance in W/(m^2 sr), intensity in W/sr, irradiance in W/m^2.
 
 import hashlib
 import math
-from collections import OrderedDict
+import threading
+from collections import OrderedDict, namedtuple
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -415,56 +416,21 @@ class Scene:
 
     def _compile(self, extra):
         mats = _MaterialTable()
-        # the primitives, a block of rows (kind, row in its kind's array, material, shape)
-        # per shape: a mesh's triangles in one block, not a Python tuple each
-        blocks, emitters = [], []
-        sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
-        ntri = 0
-        for k, s in enumerate(self.shapes):
-            mat = mats.index(s.material)
-            if isinstance(s, Sphere):
-                r = _number(s.radius, f"{_label(s, k)} (sphere) radius")
-                if not r > 0:
-                    raise InputError(f"{_label(s, k)} (sphere): radius must be positive, got "
-                                     f"{s.radius}")
-                sph.append(np.concatenate([_vec(s.centre, f"{_label(s, k)} centre"), [r]]))
-                blocks.append(np.array([[X.SPHERE, len(sph) - 1, mat, k]], dtype=np.int64))
-            elif isinstance(s, Quad):
-                quad.append(quad_row(s, k))
-                blocks.append(np.array([[X.QUAD, len(quad) - 1, mat, k]], dtype=np.int64))
-            elif isinstance(s, Mesh):
-                rows = _mesh_rows(s, k, tri, tri_n, tri_uv)
-                block = np.empty((len(rows), 4), dtype=np.int64)
-                block[:, 0], block[:, 1] = X.TRIANGLE, ntri + rows
-                block[:, 2], block[:, 3] = mat, k
-                ntri += len(rows)
-                blocks.append(block)
-            else:
-                raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got "
-                                 f"{type(s).__name__}")
-        prim = np.concatenate(blocks) if blocks else np.empty((0, 4), dtype=np.int64)
-        if not len(prim):
-            raise InputError("scene: no shapes")
-        shape_of = prim[:, 3].copy()
-        prim[:, 3] = -1
-        sph = np.array(sph, float).reshape(-1, 4)
-        quad = np.array(quad, float).reshape(-1, 7, 3)
-        tri = np.concatenate(tri).reshape(-1, 3, 3) if tri else np.empty((0, 3, 3))
-        tri_n = np.concatenate(tri_n).reshape(-1, 3, 3) if tri_n else np.empty((0, 3, 3))
-        tri_uv = np.concatenate(tri_uv).reshape(-1, 3, 2) if tri_uv else np.empty((0, 3, 2))
-        lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
-        scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
-        pad = 1e-9 * (1.0 + scale)
-        nodes, child, slots, wbox, wchild, entry = _tree(lo - pad, hi + pad)
-        geo = X.Geometry(prim, sph, quad, tri, tri_n, tri_uv, nodes, child, slots,
-                         _planes(prim, slots, quad, tri), wbox, wchild, entry)
+        material = np.array([mats.index(s.material) for s in self.shapes], dtype=np.int64)
+        g = _geometry(self.shapes)
+        prim = g.prim.copy()
+        prim[:, 2] = material[g.shape_of]
+        sph, quad = g.sph, g.quad
+        scale = float(np.max(np.abs(np.concatenate([g.lo, g.hi]))))
+        geo = X.Geometry(prim, sph, quad, g.tri, g.tri_n, g.tri_uv, *g.tree[:3], g.planes,
+                         *g.tree[3:])
         # area lights from emissive shapes (meshes do not emit), in the primitives' order
-        first = np.cumsum([len(b) for b in blocks]) - [len(b) for b in blocks]
-        for k, (i, block) in enumerate(zip(first, blocks)):
+        emitters = []
+        for k, (i, count) in enumerate(zip(g.first, g.count)):
             s = self.shapes[k]
-            if getattr(s, "emission", None) is None or not len(block):
+            if getattr(s, "emission", None) is None or not count:
                 continue
-            kind, j = block[0, 0], block[0, 1]
+            kind, j = prim[i, 0], prim[i, 1]
             if kind == X.TRIANGLE:
                 raise InputError(f"{_label(s, k)}: emission is for quads and spheres")
             if not isinstance(s.sides, str) or s.sides not in _SIDES:
@@ -480,8 +446,134 @@ class Scene:
         lights = _pack_lights(self, emitters, scale)
         shown = dict(mats.keys)
         extra = [mats.index(m) for m in extra]
-        return Compiled(geo, mats.pack(), lights, (lo.min(axis=0), hi.max(axis=0)), shape_of,
-                        shown, extra)
+        return Compiled(geo, mats.pack(), lights, tuple(g.bounds), g.shape_of, shown, extra)
+
+
+#: What a scene's shapes compile to without their materials (:func:`_geometry`): the
+#: primitives (``prim`` with materials and lights -1), each primitive's shape (``shape_of``),
+#: each shape's first primitive and count (``first``, ``count``), the kinds' arrays, the
+#: primitives' boxes (``lo``, ``hi``) and the scene's (``bounds``), the intersection planes and
+#: the tree (:func:`_tree`'s six arrays).
+_Shapes = namedtuple("_Shapes", "prim shape_of first count sph quad tri tri_n tri_uv lo hi "
+                                "bounds planes tree")
+#: The geometry of the last few scenes compiled, by a digest of their shapes (see
+#: :func:`_geometry`), at most _GEOMETRIES_KEPT of them and _GEOMETRY_BYTES in all (the newest
+#: is kept whatever its size).
+_GEOMETRIES = OrderedDict()
+_GEOMETRIES_KEPT = 4
+_GEOMETRY_BYTES = 1 << 29
+_GEOMETRIES_LOCK = threading.Lock()
+
+
+def _geometry(shapes):
+    """The :data:`_Shapes` of ``shapes``, their arrays read-only. A scene compiles on every
+    render, and an inverse method renders the same shapes with other materials pass after
+    pass: the 40,400-triangle mesh of ``bench_render.py`` took 36 ms a compile, mostly in
+    numpy's passes over its triangles (their rows, boxes and planes). So the last few are kept,
+    by a digest of what the shapes hold (a shape whose values are not plain numbers is built
+    again, and refused with its error)."""
+    key = _shapes_key(shapes)
+    with _GEOMETRIES_LOCK:
+        if key in _GEOMETRIES:
+            _GEOMETRIES.move_to_end(key)
+            return _GEOMETRIES[key]
+    g = _build_geometry(shapes)
+    for a in _arrays(g):
+        a.flags.writeable = False  # shared by the scenes that hold these shapes
+    if key is not None:
+        with _GEOMETRIES_LOCK:
+            _GEOMETRIES[key] = g
+            while len(_GEOMETRIES) > 1 and (
+                    len(_GEOMETRIES) > _GEOMETRIES_KEPT
+                    or sum(a.nbytes for v in _GEOMETRIES.values() for a in _arrays(v))
+                    > _GEOMETRY_BYTES):
+                _GEOMETRIES.popitem(last=False)
+    return g
+
+
+def _arrays(g):
+    """The arrays of :data:`_Shapes` ``g``."""
+    return (*g[:-1], *g.tree)
+
+
+#: what :func:`_shapes_key` reads of each kind of shape
+_GEOMETRY_FIELDS = {"Sphere": ("centre", "radius"), "Quad": ("corner", "edge1", "edge2"),
+                    "Mesh": ("vertices", "faces", "normals", "uv")}
+
+
+def _shapes_key(shapes):
+    """A digest of the kinds and geometric values of ``shapes`` (not their materials, lights
+    or labels), or None if one holds something other than numbers."""
+    h = hashlib.sha256()
+    for s in shapes:
+        fields = _GEOMETRY_FIELDS.get(type(s).__name__)
+        if fields is None or not isinstance(s, (Sphere, Quad, Mesh)):
+            return None
+        h.update(type(s).__name__.encode())
+        for name in fields:
+            value = getattr(s, name)
+            if value is None:
+                h.update(b"\0None")
+                continue
+            try:
+                a = np.asarray(value)
+            except (TypeError, ValueError):
+                return None
+            if a.dtype.kind not in "biuf":
+                return None
+            h.update(f"\0{a.dtype.str}{a.shape}".encode())
+            h.update(np.ascontiguousarray(a).tobytes())
+    return h.digest()
+
+
+def _build_geometry(shapes):
+    """The :data:`_Shapes` of ``shapes``; :class:`InputError` for a shape that does not make
+    sense, naming it."""
+    # the primitives, a block of rows (kind, row in its kind's array, material, shape) per
+    # shape: a mesh's triangles in one block, not a Python tuple each
+    blocks = []
+    sph, quad, tri, tri_n, tri_uv = [], [], [], [], []
+    ntri = 0
+    for k, s in enumerate(shapes):
+        if isinstance(s, Sphere):
+            r = _number(s.radius, f"{_label(s, k)} (sphere) radius")
+            if not r > 0:
+                raise InputError(f"{_label(s, k)} (sphere): radius must be positive, got "
+                                 f"{s.radius}")
+            sph.append(np.concatenate([_vec(s.centre, f"{_label(s, k)} centre"), [r]]))
+            blocks.append(np.array([[X.SPHERE, len(sph) - 1, -1, k]], dtype=np.int64))
+        elif isinstance(s, Quad):
+            quad.append(quad_row(s, k))
+            blocks.append(np.array([[X.QUAD, len(quad) - 1, -1, k]], dtype=np.int64))
+        elif isinstance(s, Mesh):
+            rows = _mesh_rows(s, k, tri, tri_n, tri_uv)
+            block = np.empty((len(rows), 4), dtype=np.int64)
+            block[:, 0], block[:, 1] = X.TRIANGLE, ntri + rows
+            block[:, 2], block[:, 3] = -1, k
+            ntri += len(rows)
+            blocks.append(block)
+        else:
+            raise InputError(f"shape {k}: expected Sphere, Quad or Mesh, got "
+                             f"{type(s).__name__}")
+    prim = np.concatenate(blocks) if blocks else np.empty((0, 4), dtype=np.int64)
+    if not len(prim):
+        raise InputError("scene: no shapes")
+    shape_of = prim[:, 3].copy()
+    prim[:, 3] = -1
+    count = np.array([len(b) for b in blocks], dtype=np.int64)
+    first = np.cumsum(count) - count
+    sph = np.array(sph, float).reshape(-1, 4)
+    quad = np.array(quad, float).reshape(-1, 7, 3)
+    tri = np.concatenate(tri).reshape(-1, 3, 3) if tri else np.empty((0, 3, 3))
+    tri_n = np.concatenate(tri_n).reshape(-1, 3, 3) if tri_n else np.empty((0, 3, 3))
+    tri_uv = np.concatenate(tri_uv).reshape(-1, 3, 2) if tri_uv else np.empty((0, 3, 2))
+    lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
+    scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
+    pad = 1e-9 * (1.0 + scale)
+    tree = _tree(lo - pad, hi + pad)
+    planes = _planes(prim, tree[2], quad, tri)
+    return _Shapes(prim, shape_of, first, count, sph, quad, tri, tri_n, tri_uv, lo, hi,
+                   np.stack([lo.min(axis=0), hi.max(axis=0)]), planes, tree)
 
 
 #: The last few trees built (:func:`_tree`), by a digest of their primitives' boxes.

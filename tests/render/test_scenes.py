@@ -205,6 +205,50 @@ def test_mesh_errors(tmp_path):
         render.Scene(shapes=[render.Mesh(_CORNERS, np.array([[0, 1, 7]]))]).compile()
 
 
+def test_shapes_compiled_again_share_their_geometry_until_it_moves(monkeypatch):
+    """A scene compiled again (with other materials: an inverse method's passes) takes its
+    shapes' arrays from the last compile, read-only and equal to the bit to a compile from
+    scratch; a vertex moved in place, a shape added or another label is noticed by content."""
+    from brdf.render import scene as S
+    v, f = _two_triangles()
+    mesh = render.Mesh(v.copy(), f, material=SPEC)
+    ball = render.Sphere((0.0, 1.0, 0.0), 0.5, material="lambert(albedo=0.2)")
+    first = render.Scene(shapes=[mesh, ball]).compile()
+    again = render.Scene(shapes=[render.Mesh(v.copy(), f.tolist(), material="mirror"),
+                                 ball]).compile()
+    assert again.geo.tri is first.geo.tri and again.geo.planes is first.geo.planes
+    assert not first.geo.tri.flags.writeable and not first.geo.box.flags.writeable
+    assert again.geo.prim is not first.geo.prim and again.geo.prim.flags.writeable
+    assert np.array_equal(again.geo.prim[:, :2], first.geo.prim[:, :2])
+    monkeypatch.setattr(S, "_GEOMETRIES", type(S._GEOMETRIES)())
+    monkeypatch.setattr(S, "_TREES", type(S._TREES)())
+    fresh = render.Scene(shapes=[mesh, ball]).compile()
+    assert fresh.geo.tri is not first.geo.tri
+    for a, b in zip(fresh.geo, first.geo):
+        assert a.tobytes() == b.tobytes()
+    mesh.vertices[0, 1] += 0.25
+    moved = render.Scene(shapes=[mesh, ball]).compile()
+    assert moved.geo.tri[0, 0, 1] == fresh.geo.tri[0, 0, 1] + 0.25
+    assert render.Scene(shapes=[mesh, ball, ball]).compile().geo.sph.shape == (2, 4)
+    # a shape that is not plain numbers is built again, and refused as before
+    with pytest.raises(InputError, match="centre"):
+        render.Scene(shapes=[render.Sphere(("a", 0, 0), 1.0)]).compile()
+
+
+def test_the_kept_geometry_is_bounded_in_bytes(monkeypatch):
+    from brdf.render import scene as S
+    monkeypatch.setattr(S, "_GEOMETRIES", type(S._GEOMETRIES)())
+    monkeypatch.setattr(S, "_GEOMETRY_BYTES", 1)
+    balls = [render.Scene(shapes=[render.Sphere((0.0, 0.0, float(k)), 1.0)]) for k in range(3)]
+    for scene in balls:
+        scene.compile()
+    assert len(S._GEOMETRIES) == 1  # the newest, whatever its size
+    monkeypatch.setattr(S, "_GEOMETRY_BYTES", 1 << 29)
+    for scene in balls:
+        scene.compile()
+    assert len(S._GEOMETRIES) == 3
+
+
 # --- scene files ------------------------------------------------------------------------------
 
 def _scene_document(tmp_path):
