@@ -3,7 +3,9 @@
 numba keys a cached kernel on its own source file only, but our kernels inline functions from
 other modules of the package (a model's formula into the dispatcher), so an edit to one file
 could leave stale machine code behind. The cache locators below stamp every kernel of this
-package with a fingerprint of the source of all its kernel modules instead.
+package with a fingerprint of the source of all its kernel modules instead; they keep numba's
+order of places (``NUMBA_CACHE_DIR`` when it is set, the package's ``__pycache__`` folders,
+the user's cache folder).
 
 numba loads a cached kernel only after it has imported and registered every implementation it
 could ever compile (``BaseContext.refresh``: its numpy, math, random, typed-container and linear
@@ -76,6 +78,10 @@ class _PackageStamp:
         return super().from_function(py_func, py_file)
 
 
+class _UserProvided(_PackageStamp, caching.UserProvidedCacheLocator):
+    pass
+
+
 class _InTree(_PackageStamp, caching.InTreeCacheLocator):
     pass
 
@@ -84,8 +90,10 @@ class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
     pass
 
 
+# in numba's order: NUMBA_CACHE_DIR when it is set, else beside the source, else the user's
+# cache folder (numba's own locators stay behind them, for other packages' functions)
 if _InTree not in caching.CacheImpl._locator_classes:
-    caching.CacheImpl._locator_classes[:0] = [_InTree, _UserWide]
+    caching.CacheImpl._locator_classes[:0] = [_UserProvided, _InTree, _UserWide]
 
 
 _runtime = {"ready": False}

@@ -122,3 +122,20 @@ def test_a_loaded_kernel_names_its_symbols_and_parses_its_module_when_linked():
     assert {f.name for f in linked.functions if not f.is_declaration} == {
         f.name for f in module.functions if not f.is_declaration}
     assert "_linking_bitcode" not in library.__dict__
+
+
+def test_numba_cache_dir_is_honoured_and_stamped(monkeypatch, tmp_path):
+    """With NUMBA_CACHE_DIR set (a read-only install, a container), the package's kernels are
+    cached there, as numba caches any function, and stamped with the package's sources."""
+    from numba.core import caching, config
+    from brdf import _kernel_cache
+    from brdf.models import _kernels
+    py_func = _kernels.eval_array.dispatcher.py_func
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    locator = caching.FunctionCache(py_func)._impl.locator
+    assert type(locator) is _kernel_cache._UserProvided
+    assert locator.get_cache_path().startswith(str(tmp_path))
+    assert locator.get_source_stamp() == _kernel_cache._STAMP
+    monkeypatch.setattr(config, "CACHE_DIR", "")
+    locator = caching.FunctionCache(py_func)._impl.locator
+    assert type(locator) in (_kernel_cache._InTree, _kernel_cache._UserWide)
