@@ -576,31 +576,14 @@ def _build_geometry(shapes):
                    np.stack([lo.min(axis=0), hi.max(axis=0)]), planes, tree)
 
 
-#: The last few trees built (:func:`_tree`), by a digest of their primitives' boxes.
-_TREES = OrderedDict()
-_TREES_KEPT = 4
-
-
 def _tree(lo, hi):
     """The BVH over boxes ``lo, hi`` with its leaves in blocks (:func:`.bvh.build_bvh`,
     :func:`.bvh.block_leaves`) and its wide form (:func:`.bvh.collapse`): ``(nodes, child,
-    slots, wbox, wchild, entry)``. A scene compiles on every render,
-    and the same boxes give the same tree, so the last few are kept: a mesh's SAH build (0.15 s
-    for 40,400 triangles) is not paid again by a benchmark's repeats or an inverse method's
-    passes over the same geometry. Kernels only read the arrays, so scenes may share them."""
-    digest = hashlib.sha256()
-    for a in (lo, hi):
-        digest.update(np.ascontiguousarray(a, dtype=float).tobytes())
-    key = (lo.shape, digest.digest())
-    if key in _TREES:
-        _TREES.move_to_end(key)
-        return _TREES[key]
+    slots, wbox, wchild, entry)``; kept with the rest of the shapes' arrays (:func:`_geometry`):
+    a mesh's SAH build took 0.15 s for 40,400 triangles."""
     nodes, child, order = build_bvh(lo, hi)
     child, slots = block_leaves(child, order)
-    _TREES[key] = (nodes, child, slots) + collapse(nodes, child)
-    while len(_TREES) > _TREES_KEPT:
-        _TREES.popitem(last=False)
-    return _TREES[key]
+    return (nodes, child, slots) + collapse(nodes, child)
 
 
 def _label(item, k, kind="shape"):

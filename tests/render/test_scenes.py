@@ -221,7 +221,6 @@ def test_shapes_compiled_again_share_their_geometry_until_it_moves(monkeypatch):
     assert again.geo.prim is not first.geo.prim and again.geo.prim.flags.writeable
     assert np.array_equal(again.geo.prim[:, :2], first.geo.prim[:, :2])
     monkeypatch.setattr(S, "_GEOMETRIES", type(S._GEOMETRIES)())
-    monkeypatch.setattr(S, "_TREES", type(S._TREES)())
     fresh = render.Scene(shapes=[mesh, ball]).compile()
     assert fresh.geo.tri is not first.geo.tri
     for a, b in zip(fresh.geo, first.geo):
