@@ -7,6 +7,7 @@ radiance in W/(m^2 sr), intensity in W/sr, irradiance in W/m^2.
 """
 
 import hashlib
+import json
 import math
 import threading
 from collections import OrderedDict, namedtuple
@@ -911,7 +912,28 @@ def _tabulated(model, i, mat):
     if model.channels not in (1, 3):
         raise InputError(f"{_named(mat, i)}: the renderer works in RGB; the model has "
                          f"{model.channels} channels")
-    return MerlTable.from_table(model if model.channels == 3 else _RGB(model))
+    # the families (classes: a family registered again is another) and the exact parameters
+    key = (tuple(type(lobe) for lobe in model.lobes),
+           json.dumps(model.to_dict(), sort_keys=True, default=repr))
+    with _CUSTOM_LOCK:
+        if key in _CUSTOM_TABLES:
+            _CUSTOM_TABLES.move_to_end(key)
+            return _CUSTOM_TABLES[key]
+    table = MerlTable.from_table(model if model.channels == 3 else _RGB(model))
+    with _CUSTOM_LOCK:
+        _CUSTOM_TABLES[key] = table
+        while len(_CUSTOM_TABLES) > _CUSTOM_KEPT:
+            _CUSTOM_TABLES.popitem(last=False)
+    return table
+
+
+#: The tables of the last few custom-lobe models rendered (:func:`_tabulated`), by their
+#: families and parameters: a scene compiles at every render, and evaluating a model's numpy
+#: formula at the grid's 1.46 M nodes took 0.4-1.3 s of each. A table holds 35 MB (70 with its
+#: filled copy), so two are kept.
+_CUSTOM_TABLES = OrderedDict()
+_CUSTOM_KEPT = 2
+_CUSTOM_LOCK = threading.Lock()
 
 
 def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):

@@ -424,6 +424,33 @@ def test_render_tabulates_custom_materials(on):
         render.render(render.builtin("sphere", "test-anisotropic"), spp=1, size=4)
 
 
+def test_a_custom_material_is_tabulated_once_for_its_parameters(monkeypatch):
+    """Rendering the same custom-lobe model again reuses its MERL-grid table; other parameters
+    (however close), another family of the same name, or a sum with it tabulate anew."""
+    from brdf import render
+    from brdf.render import scene as S
+    monkeypatch.setattr(S, "_CUSTOM_TABLES", type(S._CUSTOM_TABLES)())
+    calls = []
+    evaluate = Tinted.formula
+    monkeypatch.setattr(Tinted, "formula", lambda self, wi, wo: calls.append(1)
+                        or evaluate(self, wi, wo))
+
+    def table(spec):
+        calls.clear()
+        mats = render.builtin("sphere", spec).compile().mats
+        return mats.grids[0], len(calls)
+
+    first, n = table("test-tinted(k=0.4, t=0.5)")
+    assert n > 0
+    again, n = table("test-tinted(k=0.4, t=0.5)")
+    assert n == 0 and np.shares_memory(again, first)
+    closer, n = table(f"test-tinted(k={0.4 + 1e-15!r}, t=0.5)")
+    assert n > 0 and not np.array_equal(closer, first)
+    _, n = table("test-tinted(k=0.4, t=0.5) + lambert(albedo=0.1)")
+    assert n > 0
+    assert len(S._CUSTOM_TABLES) == S._CUSTOM_KEPT  # the oldest was let go
+
+
 @pytest.mark.parametrize("format", ["mitsuba", "gltf"])
 def test_export_of_a_custom_lobe_is_a_one_line_error(on, format):
     with pytest.raises(InputError) as info:
