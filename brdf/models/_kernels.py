@@ -952,11 +952,11 @@ def grad_array(kinds, offs, p, nch, wi, wo, out, d):
 BATCH = 256
 
 
-@allocating_kernel(linked=AS_LOWERED)
-def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
-    """:func:`pdf_array` for the m directions from k0 on (a kernel of its own, which allocates
-    the batch's work space)."""
-    q, f, u, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
+@kernel(linked=AS_LOWERED)
+def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m, space):
+    """:func:`pdf_array` for the m directions from k0 on, in the work space ``space``
+    (:func:`_batch_space`)."""
+    q, f, u, sel, work, chosen, lists, counts = space
     for t in range(m):
         for a in range(3):
             q[PAIR, GIVEN + a, t], q[PAIR, DRAWN + a, t] = wi[k0 + t, a], wo[k0 + t, a]
@@ -968,10 +968,10 @@ def _pdf_batch(kinds, offs, p, nch, wi, wo, out, k0, m):
         out[k0 + t] = q[PAIR, PDF, t]
 
 
-@allocating_kernel(linked=AS_LOWERED)
-def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
+@kernel(linked=AS_LOWERED)
+def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m, space):
     """:func:`sample_array` for the m directions from k0 on (see :func:`_pdf_batch`)."""
-    q, f, uu, sel, work, chosen, lists, counts = _batch_space(kinds.shape[0], nch)
+    q, f, uu, sel, work, chosen, lists, counts = space
     for t in range(m):
         for a in range(3):
             q[PAIR, GIVEN + a, t] = q[DRAW, GIVEN + a, t] = wi[k0 + t, a]
@@ -991,7 +991,9 @@ def _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, k0, m):
 @allocating_kernel(linked=AS_LOWERED)
 def _batch_space(nl, nch):
     """Work space of :func:`mixture_batch` for BATCH items of ``nl`` lobes: query sets, values,
-    the uniform pair, selection, work and chosen, five lists and their counts."""
+    the uniform pair, selection, work and chosen, five lists and their counts. One serves a
+    driver's batches in turn: every batch writes what it reads of it (allocated and zeroed per
+    batch, it was a tenth of ``Model.pdf``'s time)."""
     return (np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, nch)), np.zeros((2, BATCH)),
             np.zeros((BATCH, nl)), np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64),
             np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64))
@@ -1000,16 +1002,19 @@ def _batch_space(nl, nch):
 @threaded_kernel("wi", "wo", "out")
 def pdf_array(kinds, offs, p, nch, wi, wo, out):
     n = wi.shape[0]
+    space = _batch_space(kinds.shape[0], nch)
     for b in range((n + BATCH - 1) // BATCH):
-        _pdf_batch(kinds, offs, p, nch, wi, wo, out, b * BATCH, min(BATCH, n - b * BATCH))
+        _pdf_batch(kinds, offs, p, nch, wi, wo, out, b * BATCH, min(BATCH, n - b * BATCH),
+                   space)
 
 
 @threaded_kernel("wi", "u", "wo", "pdf", "weight")
 def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
     n = wi.shape[0]
+    space = _batch_space(kinds.shape[0], nch)
     for b in range((n + BATCH - 1) // BATCH):
         _sample_batch(kinds, offs, p, nch, wi, u, wo, pdf, weight, b * BATCH,
-                      min(BATCH, n - b * BATCH))
+                      min(BATCH, n - b * BATCH), space)
 
 
 @kernel
