@@ -181,9 +181,10 @@ def _measured_pdf(cdf, vx, vy, vz, lx, ly, lz):
 # --- the material interface of the integrator -------------------------------------------------
 #
 # The integrator shades its paths in batches, the paths on one material at a time: item j reads
-# its packed parameters from the row ``lp[j]`` (the material's, or a texel's where textures bind
-# them; see :func:`material_params`) and its directions from the query sets ``q[s]
-# (QUERY_ROWS, n)`` of :func:`brdf.models._kernels.mixture_batch`, in the local shading frame:
+# its packed parameters from the row ``lp[j * step]`` (the material's, or a texel's where
+# textures bind them; see :func:`material_params`; step 0: one row for every item) and its
+# directions from the query sets ``q[s] (QUERY_ROWS, n)`` of
+# :func:`brdf.models._kernels.mixture_batch`, in the local shading frame:
 # v towards the viewer (rows GIVEN), l towards the light (rows DRAWN) and a density (row PDF).
 # f is evaluated as f(wi = l, wo = v), and l is drawn given v.
 
@@ -235,7 +236,7 @@ def _measured_batch(grid, filled, cdf, q, f, u1, u2, lists, counts):
 
 
 @inline_kernel
-def bsdf_shade(mats, m, lp, q, f, u1, u2, sel, work, chosen, lists, counts):
+def bsdf_shade(mats, m, lp, step, q, f, u1, u2, sel, work, chosen, lists, counts):
     """Shade a batch of paths on material m (see
     :func:`brdf.models._kernels.mixture_batch` for the query sets and lists): draw l given v
     at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[DRAW]``; f(l, v)
@@ -246,8 +247,8 @@ def bsdf_shade(mats, m, lp, q, f, u1, u2, sel, work, chosen, lists, counts):
         g = mint[m, GRID]
         _measured_batch(mats.grids[g], mats.filled[g], mats.tables[g], q, f, u1, u2, lists, counts)
         return
-    mixture_batch(mats.kinds[mint[m, K0]:mint[m, K1]], mats.offs[mint[m, O0]:mint[m, O1]], lp, 1,
-                  3, q, f, u1, u2, sel, work, chosen, lists, counts, False)
+    mixture_batch(mats.kinds[mint[m, K0]:mint[m, K1]], mats.offs[mint[m, O0]:mint[m, O1]], lp,
+                  step, 3, q, f, u1, u2, sel, work, chosen, lists, counts, False)
 
 
 def tabulate(table):
@@ -298,16 +299,16 @@ BATCH = 256
 @allocating_kernel
 def _driver_space(mats, m, v, k0, count, lists, counts):
     """Work space of :func:`bsdf_shade` for the directions v[k0:k0 + count] on material m: query
-    sets with v in rows GIVEN, values, the uniform pair, parameter rows, selection, work and
-    chosen; the lists get the items in order."""
+    sets with v in rows GIVEN, values, the uniform pair, the material's parameter row (step 0),
+    selection, work and chosen; the lists get the items in order."""
     mint, params = mats.mint, mats.params
     p = params[mint[m, P0]:mint[m, P1]]
     q, f, u = np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, 3)), np.zeros((2, BATCH))
-    lp = np.zeros((BATCH, max(p.shape[0], 1)))
+    lp = np.zeros((1, max(p.shape[0], 1)))
+    lp[0, :p.shape[0]] = p
     for t in range(count):
         for a in range(3):
             q[PAIR, GIVEN + a, t] = q[DRAW, GIVEN + a, t] = v[k0 + t, a]
-        lp[t, :p.shape[0]] = p
         for k in range(4):
             lists[k, t] = t
     return (q, f, u, lp, np.zeros((BATCH, max(mint[m, K1] - mint[m, K0], 1))),
@@ -327,7 +328,7 @@ def sample_array(mats, m, v, u, l, pdf, weight):
         for t in range(c):
             uu[0, t], uu[1, t] = u[k0 + t, 0], u[k0 + t, 1]
         counts[0] = counts[1] = c
-        bsdf_shade(mats, m, lp, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
+        bsdf_shade(mats, m, lp, 0, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
         for t in range(c):
             for a in range(3):
                 l[k0 + t, a] = q[DRAW, DRAWN + a, t]
@@ -349,5 +350,5 @@ def pdf_array(mats, m, v, l, pdf):
             for a in range(3):
                 q[PAIR, DRAWN + a, t] = l[k0 + t, a]
         counts[0] = counts[3] = c
-        bsdf_shade(mats, m, lp, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
+        bsdf_shade(mats, m, lp, 0, q, f, uu[0], uu[1], sel, work, chosen, lists, counts)
         pdf[k0:k0 + c] = q[PAIR, PDF, :c]
