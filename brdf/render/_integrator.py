@@ -543,6 +543,9 @@ def _shade(opts, mats, p):
         counts[0] = counts[1] = n0
         counts[2], counts[3] = n2, n3
         mint = mats.mint
+        # a call in each branch, each with a constant step: one call, on rows and a step chosen
+        # by the branch, rendered the furnace 9 % slower (one thread, 121-126 against 111-115
+        # ns a sample)
         if mixed or mint[material, B1] > mint[material, B0]:
             # a row per path: untextured materials' rows from their parameters
             for t in range(n0):

@@ -241,7 +241,8 @@ def bsdf_shade(mats, m, lp, step, q, f, u1, u2, sel, work, chosen, lists, counts
     :func:`brdf.models._kernels.mixture_batch` for the query sets and lists): draw l given v
     at ``lists[1]``, with its density and the weight f(l, v) cos / pdf in ``f[DRAW]``; f(l, v)
     at ``lists[2]`` and the density of l at ``lists[3]`` in set PAIR. ``lists[0]`` repeats
-    ``lists[1]``, and ``lists[4]`` is work space."""
+    ``lists[1]``, and ``lists[4]`` is work space. Item j's parameters are row ``j * step`` of
+    ``lp`` (a measured table has none)."""
     mint = mats.mint
     if mint[m, TYPE] == MEASURED:
         g = mint[m, GRID]
