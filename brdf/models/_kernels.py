@@ -993,7 +993,7 @@ def _batch_space(nl, nch):
     """Work space of :func:`mixture_batch` for BATCH items of ``nl`` lobes: query sets, values,
     the uniform pair, selection, work and chosen, five lists and their counts. One serves a
     driver's batches in turn: every batch writes what it reads of it (allocated and zeroed per
-    batch, it was a tenth of ``Model.pdf``'s time)."""
+    batch, it was a quarter of ``Model.pdf``'s time on one thread)."""
     return (np.zeros((2, QUERY_ROWS, BATCH)), np.zeros((2, BATCH, nch)), np.zeros((2, BATCH)),
             np.zeros((BATCH, nl)), np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64),
             np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64))
