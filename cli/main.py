@@ -8,10 +8,12 @@ one line on stderr, ``brdf-fit: error: ...``; ``--debug`` prints the traceback b
 
 import argparse
 import contextlib
+import gc
 import os
 import signal
 import sys
 import textwrap
+import threading
 
 from . import (arguments, commands, demo, explore, export, fit_images, precompile,
                process_exit, render)
@@ -380,6 +382,10 @@ def _load_plugins(args):
     return 0
 
 
+#: Seconds from a command's start with Python's cyclic garbage collector off (see :func:`run`).
+GC_AFTER = 1.0
+
+
 def run():
     """The ``brdf-fit`` console script: :func:`main` on the process arguments; the process then
     ends without the interpreter's teardown of its modules (:mod:`brdf_cli.process_exit`).
@@ -388,8 +394,20 @@ def run():
     busy-waits 2^28 cycles for work before it sleeps (0.09-0.1 s of a core in every command,
     which makes only small BLAS calls, if any). Unless the environment says otherwise, the
     command's threads wait 2^4 cycles (``OPENBLAS_THREAD_TIMEOUT``, read when numpy loads
-    OpenBLAS), and a BLAS call wakes them."""
+    OpenBLAS), and a BLAS call wakes them.
+
+    Python's cyclic garbage collector is off for the command's first :data:`GC_AFTER` seconds:
+    importing numpy, numba and the package makes some 100,000 objects, and the collections
+    they set off (one of them over every generation) took 24-32 ms of the imports, where
+    reference counting frees what a short command discards. A command still running then (a
+    fit, a batch, a first compile) collects as usual from there on, and so does a forked child
+    at once (the package's own workers are spawned)."""
     os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+    gc.disable()
+    timer = threading.Timer(GC_AFTER, gc.enable)
+    timer.daemon = True
+    timer.start()
+    os.register_at_fork(after_in_child=gc.enable)  # a forked child has no timer
     status = main()
     process_exit.arm(status)
     return status

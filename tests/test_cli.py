@@ -290,6 +290,30 @@ def test_the_script_keeps_numpys_blas_threads_from_busy_waiting():
     assert proc.returncode == 0 and proc.stderr.split()[-2] == "28", proc.stderr
 
 
+_GC = """
+import gc, os, sys, time
+import brdf_cli.main
+sys.argv = ["brdf-fit", "models"]
+brdf_cli.main.run()
+during = gc.isenabled()
+pid = os.fork()
+if pid == 0:
+    os._exit(0 if gc.isenabled() else 1)
+child = os.waitpid(pid, 0)[1]
+time.sleep(brdf_cli.main.GC_AFTER + 0.5)
+print(during, child == 0, gc.isenabled(), file=sys.stderr)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork")
+def test_the_script_collects_cycles_only_after_its_start():
+    # off while a command starts (its imports), on again GC_AFTER later, and in a forked child
+    proc = subprocess.run([sys.executable, "-c", _GC], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.split()[-3:] == ["False", "True", "True"], proc.stderr
+
+
 def test_process_exit_runs_after_every_other_exit_handler():
     # armed, the status is the command's and other modules' exit handlers still run first
     proc = _exit_of("import atexit, sys, brdf_cli, logging\n"
