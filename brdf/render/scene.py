@@ -523,7 +523,7 @@ def _shapes_key(shapes):
             if a.dtype.kind not in "biuf":
                 return None
             h.update(f"\0{a.dtype.str}{a.shape}".encode())
-            h.update(np.ascontiguousarray(a).tobytes())
+            h.update(np.ascontiguousarray(a))  # its buffer: no copy of a large mesh
     return h.digest()
 
 
