@@ -457,44 +457,62 @@ class Scene:
 #: the tree (:func:`_tree`'s six arrays).
 _Shapes = namedtuple("_Shapes", "prim shape_of first count sph quad tri tri_n tri_uv lo hi "
                                 "bounds planes tree")
-#: The geometry of the last few scenes compiled, by a digest of their shapes (see
-#: :func:`_geometry`), at most _GEOMETRIES_KEPT of them and _GEOMETRY_BYTES in all (the newest
-#: is kept whatever its size).
-_GEOMETRIES = OrderedDict()
-_GEOMETRIES_KEPT = 4
-_GEOMETRY_BYTES = 1 << 29
-_GEOMETRIES_LOCK = threading.Lock()
+class _Recent:
+    """The last few values made, by key: at most ``kept`` of them and, with ``size`` (a value's
+    bytes), at most ``limit`` bytes in all (the newest is kept whatever its size); the oldest
+    used is let go first. Threads may share it."""
+
+    def __init__(self, kept, limit=None, size=None):
+        self.kept, self.limit, self.size = kept, limit, size
+        self._values = OrderedDict()
+        self._lock = threading.Lock()
+
+    def __len__(self):
+        return len(self._values)
+
+    def get(self, key, make):
+        """The value kept for ``key``, else ``make()``, kept unless ``key`` is None."""
+        with self._lock:
+            if key in self._values:
+                self._values.move_to_end(key)
+                return self._values[key]
+        value = make()
+        if key is not None:
+            with self._lock:
+                self._values[key] = value
+                while len(self._values) > 1 and (len(self._values) > self.kept or (
+                        self.limit is not None
+                        and sum(map(self.size, self._values.values())) > self.limit)):
+                    self._values.popitem(last=False)
+        return value
 
 
 def _geometry(shapes):
     """The :data:`_Shapes` of ``shapes``, their arrays read-only. A scene compiles on every
     render, and an inverse method renders the same shapes with other materials pass after
     pass: the 40,400-triangle mesh of ``bench_render.py`` took 36 ms a compile, mostly in
-    numpy's passes over its triangles (their rows, boxes and planes). So the last few are kept,
-    by a digest of what the shapes hold (a shape whose values are not plain numbers is built
-    again, and refused with its error)."""
-    key = _shapes_key(shapes)
-    with _GEOMETRIES_LOCK:
-        if key in _GEOMETRIES:
-            _GEOMETRIES.move_to_end(key)
-            return _GEOMETRIES[key]
-    g = _build_geometry(shapes)
+    numpy's passes over its triangles (their rows, boxes and planes). So the last few are kept
+    (:data:`_GEOMETRIES`), by a digest of what the shapes hold (a shape whose values are not
+    plain numbers is built again, and refused with its error)."""
+    return _GEOMETRIES.get(_shapes_key(shapes), lambda: _read_only(_build_geometry(shapes)))
+
+
+def _read_only(g):
+    """:data:`_Shapes` ``g``, its arrays made read-only: the scenes that hold these shapes
+    share them."""
     for a in _arrays(g):
-        a.flags.writeable = False  # shared by the scenes that hold these shapes
-    if key is not None:
-        with _GEOMETRIES_LOCK:
-            _GEOMETRIES[key] = g
-            while len(_GEOMETRIES) > 1 and (
-                    len(_GEOMETRIES) > _GEOMETRIES_KEPT
-                    or sum(a.nbytes for v in _GEOMETRIES.values() for a in _arrays(v))
-                    > _GEOMETRY_BYTES):
-                _GEOMETRIES.popitem(last=False)
+        a.flags.writeable = False
     return g
 
 
 def _arrays(g):
     """The arrays of :data:`_Shapes` ``g``."""
     return (*g[:-1], *g.tree)
+
+
+#: The geometry of the last few scenes compiled (:func:`_geometry`): at most 4 of them and
+#: 512 MiB in all.
+_GEOMETRIES = _Recent(4, 1 << 29, lambda g: sum(a.nbytes for a in _arrays(g)))
 
 
 #: what :func:`_shapes_key` reads of each kind of shape
@@ -915,25 +933,15 @@ def _tabulated(model, i, mat):
     # the families (classes: a family registered again is another) and the exact parameters
     key = (tuple(type(lobe) for lobe in model.lobes),
            json.dumps(model.to_dict(), sort_keys=True, default=repr))
-    with _CUSTOM_LOCK:
-        if key in _CUSTOM_TABLES:
-            _CUSTOM_TABLES.move_to_end(key)
-            return _CUSTOM_TABLES[key]
-    table = MerlTable.from_table(model if model.channels == 3 else _RGB(model))
-    with _CUSTOM_LOCK:
-        _CUSTOM_TABLES[key] = table
-        while len(_CUSTOM_TABLES) > _CUSTOM_KEPT:
-            _CUSTOM_TABLES.popitem(last=False)
-    return table
+    return _CUSTOM_TABLES.get(key, lambda: MerlTable.from_table(
+        model if model.channels == 3 else _RGB(model)))
 
 
 #: The tables of the last few custom-lobe models rendered (:func:`_tabulated`), by their
 #: families and parameters: a scene compiles at every render, and evaluating a model's numpy
 #: formula at the grid's 1.46 M nodes took 0.4-1.3 s of each. A table holds 35 MB (70 with its
 #: filled copy), so two are kept.
-_CUSTOM_TABLES = OrderedDict()
-_CUSTOM_KEPT = 2
-_CUSTOM_LOCK = threading.Lock()
+_CUSTOM_TABLES = _Recent(2)
 
 
 def _bind_textures(mat, model, compiled, i, bind, tex, texmeta):

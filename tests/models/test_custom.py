@@ -429,7 +429,7 @@ def test_a_custom_material_is_tabulated_once_for_its_parameters(monkeypatch):
     (however close), another family of the same name, or a sum with it tabulate anew."""
     from brdf import render
     from brdf.render import scene as S
-    monkeypatch.setattr(S, "_CUSTOM_TABLES", type(S._CUSTOM_TABLES)())
+    monkeypatch.setattr(S, "_CUSTOM_TABLES", S._Recent(S._CUSTOM_TABLES.kept))
     calls = []
     evaluate = Tinted.formula
     monkeypatch.setattr(Tinted, "formula", lambda self, wi, wo: calls.append(1)
@@ -448,7 +448,7 @@ def test_a_custom_material_is_tabulated_once_for_its_parameters(monkeypatch):
     assert n > 0 and not np.array_equal(closer, first)
     _, n = table("test-tinted(k=0.4, t=0.5) + lambert(albedo=0.1)")
     assert n > 0
-    assert len(S._CUSTOM_TABLES) == S._CUSTOM_KEPT  # the oldest was let go
+    assert len(S._CUSTOM_TABLES) == S._CUSTOM_TABLES.kept  # the oldest was let go
 
 
 @pytest.mark.parametrize("format", ["mitsuba", "gltf"])

@@ -220,7 +220,7 @@ def test_shapes_compiled_again_share_their_geometry_until_it_moves(monkeypatch):
     assert not first.geo.tri.flags.writeable and not first.geo.box.flags.writeable
     assert again.geo.prim is not first.geo.prim and again.geo.prim.flags.writeable
     assert np.array_equal(again.geo.prim[:, :2], first.geo.prim[:, :2])
-    monkeypatch.setattr(S, "_GEOMETRIES", type(S._GEOMETRIES)())
+    monkeypatch.setattr(S, "_GEOMETRIES", S._Recent(4, 1 << 29, S._GEOMETRIES.size))
     fresh = render.Scene(shapes=[mesh, ball]).compile()
     assert fresh.geo.tri is not first.geo.tri
     for a, b in zip(fresh.geo, first.geo):
@@ -236,13 +236,12 @@ def test_shapes_compiled_again_share_their_geometry_until_it_moves(monkeypatch):
 
 def test_the_kept_geometry_is_bounded_in_bytes(monkeypatch):
     from brdf.render import scene as S
-    monkeypatch.setattr(S, "_GEOMETRIES", type(S._GEOMETRIES)())
-    monkeypatch.setattr(S, "_GEOMETRY_BYTES", 1)
+    monkeypatch.setattr(S, "_GEOMETRIES", S._Recent(4, 1, S._GEOMETRIES.size))
     balls = [render.Scene(shapes=[render.Sphere((0.0, 0.0, float(k)), 1.0)]) for k in range(3)]
     for scene in balls:
         scene.compile()
     assert len(S._GEOMETRIES) == 1  # the newest, whatever its size
-    monkeypatch.setattr(S, "_GEOMETRY_BYTES", 1 << 29)
+    monkeypatch.setattr(S._GEOMETRIES, "limit", 1 << 29)
     for scene in balls:
         scene.compile()
     assert len(S._GEOMETRIES) == 3
