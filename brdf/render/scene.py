@@ -516,8 +516,8 @@ _GEOMETRIES = _Recent(4, 1 << 29, lambda g: sum(a.nbytes for a in _arrays(g)))
 
 
 #: what :func:`_shapes_key` reads of each kind of shape
-_GEOMETRY_FIELDS = {"Sphere": ("centre", "radius"), "Quad": ("corner", "edge1", "edge2"),
-                    "Mesh": ("vertices", "faces", "normals", "uv")}
+_GEOMETRY_FIELDS = {Sphere: ("centre", "radius"), Quad: ("corner", "edge1", "edge2"),
+                    Mesh: ("vertices", "faces", "normals", "uv")}
 
 
 def _shapes_key(shapes):
@@ -525,8 +525,8 @@ def _shapes_key(shapes):
     or labels), or None if one holds something other than numbers."""
     h = hashlib.sha256()
     for s in shapes:
-        fields = _GEOMETRY_FIELDS.get(type(s).__name__)
-        if fields is None or not isinstance(s, (Sphere, Quad, Mesh)):
+        fields = _GEOMETRY_FIELDS.get(type(s))
+        if fields is None:
             return None
         h.update(type(s).__name__.encode())
         for name in fields:
