@@ -422,7 +422,7 @@ class Scene:
         prim = g.prim.copy()
         prim[:, 2] = material[g.shape_of]
         sph, quad = g.sph, g.quad
-        scale = float(np.max(np.abs(np.concatenate([g.lo, g.hi]))))
+        scale = _scale(g.bounds)
         geo = X.Geometry(prim, sph, quad, g.tri, g.tri_n, g.tri_uv, *g.tree[:3], g.planes,
                          *g.tree[3:])
         # area lights from emissive shapes (meshes do not emit), in the primitives' order
@@ -587,12 +587,18 @@ def _build_geometry(shapes):
     tri_n = np.concatenate(tri_n).reshape(-1, 3, 3) if tri_n else np.empty((0, 3, 3))
     tri_uv = np.concatenate(tri_uv).reshape(-1, 3, 2) if tri_uv else np.empty((0, 3, 2))
     lo, hi = _bounds(prim[:, 0], prim[:, 1], sph, quad, tri)
-    scale = float(np.max(np.abs(np.concatenate([lo, hi]))))
-    pad = 1e-9 * (1.0 + scale)
+    bounds = np.stack([lo.min(axis=0), hi.max(axis=0)])
+    pad = 1e-9 * (1.0 + _scale(bounds))
     tree = _tree(lo - pad, hi + pad)
     planes = _planes(prim, tree[2], quad, tri)
-    return _Shapes(prim, shape_of, first, count, sph, quad, tri, tri_n, tri_uv, lo, hi,
-                   np.stack([lo.min(axis=0), hi.max(axis=0)]), planes, tree)
+    return _Shapes(prim, shape_of, first, count, sph, quad, tri, tri_n, tri_uv, lo, hi, bounds,
+                   planes, tree)
+
+
+def _scale(bounds):
+    """The largest magnitude of a coordinate in the scene's ``bounds`` (lower and upper
+    corners): the largest of any primitive's box, as every box lies between them."""
+    return float(np.max(np.abs(bounds)))
 
 
 def _tree(lo, hi):
