@@ -219,7 +219,7 @@ def _defined_in_object(obj):
     return names
 
 
-# numba's own, also if this module is imported again (as for _rebuild_env below)
+# numba's own, also if this module is imported again (as for _rebuild_env above)
 _numba_unserialize = codegen.CPUCodeLibrary._unserialize.__func__
 _numba_unserialize = getattr(_numba_unserialize, "__wrapped__", _numba_unserialize)
 _numba_module_for_linking = getattr(codegen.CPUCodeLibrary._get_module_for_linking,
