@@ -44,9 +44,11 @@ def test_a_model_s_own_families_give_the_same_bytes_as_every_family(spec):
         _kernels.pdf_array(kinds, c.offsets, c.params, 3, wi, wo, pdf)
         _kernels.sample_array(kinds, c.offsets, c.params, 3, wi, u, wo_s, pdf_s, weight)
         results.append((f, pdf, wo_s, pdf_s, weight))
-    for every, alone in zip(*results):  # to rounding: kernels compile with fast-math
-        # contraction, and LLVM may contract a formula inlined into other code differently
-        np.testing.assert_allclose(alone, every, rtol=4e-15, atol=0.0)
+    for k, (every, alone) in enumerate(zip(*results)):  # to rounding: kernels compile with
+        # fast-math contraction, and LLVM may contract a formula inlined into other code
+        # differently. A sampled direction's components (k 2) round at its unit length, so a
+        # small one is held to that in absolute terms (AMD znver3: 4.4e-16 off at 0.0596)
+        np.testing.assert_allclose(alone, every, rtol=4e-15, atol=4e-15 if k == 2 else 0.0)
     assert np.any(results[0][0] > 0.0) and np.any(results[0][1] > 0.0)
 
 
