@@ -376,7 +376,8 @@ def _vertices(opts, geo, mats, lights, p):
     nlights = pmf.shape[0]
     shading = shadows = 0
     for j in range(PACKET):
-        il[NEE, j], il[END, j] = -1, 0
+        # MAT -1: no shading batch (_shade), unless the path shades here
+        il[NEE, j], il[END, j], il[MAT, j] = -1, 0, -1
         sh[LENGTH, j] = -1.0  # idle (slots below j are taken or idle already)
         if not il[ALIVE, j]:
             continue
@@ -516,10 +517,8 @@ def _shade(opts, mats, p):
     mis = opts[STRATEGY] == MIS
     lists = il[LIST:LIST + 5]
     counts = il[COUNT]
-    for j in range(PACKET):
-        # a lane still to shade holds MAT >= 0 until its batch's turn
-        if not il[ALIVE, j] or il[END, j]:
-            il[MAT, j] = -1
+    # a lane still to shade holds MAT >= 0 until its batch's turn; the others hold -1 from
+    # _vertices (a pass here that cleared them compiled to masked stores, slow on AMD's Zen 3)
     for first in range(PACKET):
         m = il[MAT, first]
         if m < 0:

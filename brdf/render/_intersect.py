@@ -420,17 +420,25 @@ def _packet_slot(geo, slot, ray, tmax, hit, n):
         c = geo.sph[geo.prim[geo.slots[slot], 1]]
         for j in range(n):
             ox, oy, oz, dx, dy, dz = ray_at(ray, j)
-            t = hit_sphere(c, ox, oy, oz, dx, dy, dz, tmax[j])
-            if t > 0.0:
-                tmax[j], hit[j] = t, slot
+            old = tmax[j]
+            t = hit_sphere(c, ox, oy, oz, dx, dy, dz, old)
+            nearer = t > 0.0
+            hit[j] = slot if nearer else hit[j]  # in this order: see below
+            tmax[j] = t if nearer else old
         return
     plane = _plane(planes, b, s)
     for j in range(n):
         ox, oy, oz, dx, dy, dz = ray_at(ray, j)
-        t = plane_distance(plane, ox, oy, oz, dx, dy, dz, tmax[j])
-        nearer = t < tmax[j]
-        tmax[j] = t if nearer else tmax[j]
+        old = tmax[j]
+        t = plane_distance(plane, ox, oy, oz, dx, dy, dz, old)
+        nearer = t < old
+        # hit first, reading hit[j] only where it is kept, then tmax from the value read
+        # before: LLVM turned the other order into a masked store of tmax (a store of
+        # select(c, t, tmax[j]) right after loading tmax[j] writes only where c; a store to
+        # another array in between stops it), which AMD's Zen 3 cores run in microcode: a
+        # quarter of the Cornell box's packet tests on znver3
         hit[j] = slot if nearer else hit[j]
+        tmax[j] = t if nearer else old
 
 
 @kernel
@@ -483,9 +491,14 @@ def trace_packet(geo, stack, dist, ray, inv, enters, tmax, hit, any_hit, n):
                 _packet_slot(geo, slot, ray, tmax, hit, n)
         if any_hit:
             for j in range(n):
-                if hit[j] >= 0 and tmax[j] > 0.0:
-                    tmax[j] = -1.0
-                    busy -= 1
+                # lanes hit in this leaf are done; the store into ``enters`` (work space)
+                # between reading and writing tmax keeps LLVM from making the write a masked
+                # store (see _packet_slot)
+                t = tmax[j]
+                done = (hit[j] >= 0) & (t > 0.0)
+                enters[j] = done
+                tmax[j] = -1.0 if done else t
+                busy -= done
 
 
 @kernel
