@@ -7,6 +7,7 @@
 
 __version__ = "0.1.0"
 
+from . import _numba_import  # noqa: E402,F401  (first: see there)
 from . import geometry, io, models, radiometry  # noqa: E402
 from .errors import (BRDFError, FormatError, InputError, MainGuardError, OutputError,  # noqa: E402
                      ParameterError, SpecError)
