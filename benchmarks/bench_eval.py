@@ -6,15 +6,18 @@ All three evaluate the same 1,458,000 random direction pairs (the size of the ME
 Fresnel disabled (Mitsuba's ``roughconductor`` with ``material='none'`` has F = 1 exactly and
 separable Smith masking, which is our default):
 
-- ``brdf``: ``Model.eval(wi, wo)``, numpy float64 arrays in and out;
+- ``brdf``: ``Model.eval(wi, wo)``, numpy float64 arrays in and out, called again and again
+  as a caller does (each result dropped before the next call, so its memory is reused:
+  ``brdf.memory.empty``); and the same with ``brdf.memory.trim()`` before each call, so every
+  result is written to new memory whose pages fault in as it is written (a first call);
 - ``mitsuba (numpy in/out)``: Mitsuba 3 ``llvm_ad_rgb`` from the same numpy arrays to a numpy
   result, the same contract as ours (conversion to and from Dr.Jit included);
 - ``mitsuba (kernel only)``: the same with the inputs already resident as Dr.Jit float32 arrays,
   timing only the fused evaluation kernel;
 - ``numpy``: a plain vectorised numpy float64 formula;
 - ``memory bound``: a numba kernel on both cores that only reads the same float64 arrays and
-  writes an output of the same shape into a fresh array (no formula): the limit of any
-  evaluation with numpy arrays in and out, set by memory traffic and page faults.
+  writes an output of the same shape into a fresh ``np.empty`` array (no formula): the limit
+  of an evaluation into new memory, set by memory traffic and page faults.
 
 Ratios are printed against each baseline; the values of all three are compared too. Then the
 same two with the output array given (``Model.eval(wi, wo, out=out)``, numpy's idiom for a
@@ -124,7 +127,12 @@ def main():
     wi, wo = random_pairs(args.pairs)
     model = brdf.models.Lambert(albedo=ALBEDO) + brdf.models.GGX(alpha=ALPHA, ks=KS)
     ours = model.eval(wi, wo)
+    def new_memory():
+        brdf.memory.trim()
+        return model.eval(wi, wo)
+
     rows = [("brdf Model.eval (float64)", *best_time(lambda: model.eval(wi, wo), args.repeats)),
+            ("brdf Model.eval, new memory each call", *best_time(new_memory, args.repeats)),
             ("plain numpy formula (float64)",
              *best_time(lambda: numpy_lambert_ggx(wi, wo), args.repeats)),
             ("memory bound: read inputs, write output (numba)",

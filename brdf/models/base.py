@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from .. import memory
 from ..arguments import integer, real
 from ..errors import InputError, ParameterError, SpecError
 from ..geometry import UNIT_SQ, broadcast_shape, direction_array, flat_pairs, uniform_array
@@ -503,9 +504,10 @@ class Model(Component):
         """BRDF value f_r(wi, wo) in 1/sr without the cosine, shaped ``(..., C)``.
 
         ``out``, if given, is a C-contiguous float64 array of that shape that receives the
-        values and is returned (as numpy's ``out=``): a caller evaluating many large batches
-        spares each a fresh array, whose first writes fault its pages in (a third or more of
-        the time of a MERL-size evaluation)."""
+        values and is returned (as numpy's ``out=``). Without it, a result of
+        :data:`brdf.memory.POOL_MIN` bytes or more takes the memory of one dropped before
+        (:func:`brdf.memory.empty`): a fresh array's first writes fault its pages in, which
+        took as long as the evaluation itself for a MERL-size batch."""
         if not self.uses_kernels:
             from . import mixed
             return _filled(out, mixed.eval(self, wi, wo), wi, wo)
@@ -652,12 +654,13 @@ class Model(Component):
 
 
 def _result(out, shape, *inputs):
-    """The array a result of ``shape`` is written to: a new one, or ``out`` once it is checked
+    """The array a result of ``shape`` is written to: a new one (:func:`brdf.memory.empty`,
+    which reuses the blocks of results dropped before), or ``out`` once it is checked
     (InputError naming ``out``): float64, C-contiguous (the kernels write its rows in
     place), writable, of ``shape``, and sharing no memory with the ``inputs`` the kernel
     reads while it writes."""
     if out is None:
-        return np.empty(shape)
+        return memory.empty(shape)
     if not isinstance(out, np.ndarray):
         raise InputError(f"out: expected a float64 numpy array shaped {shape}, got "
                          f"{type(out).__name__}")
