@@ -99,13 +99,13 @@ def square_to_disk_concentric(u1, u2):
     """Shirley & Chiu 1997, "A Low Distortion Map Between Disk and Square", section 3."""
     a = 2.0 * u1 - 1.0
     b = 2.0 * u2 - 1.0
-    if a == 0.0 and b == 0.0:
-        return 0.0, 0.0
-    # selects, not branches: which wedge a sample lies in is a coin toss
+    # selects, not branches: which wedge a sample lies in is a coin toss, and a loop of warps
+    # runs in SIMD lanes (the centre, a = b = 0, maps to r = 0 through a ratio of 0)
     wide = a * a > b * b
     r = a if wide else b
     # phi = pi/4 b/a where |a| > |b|, else pi/2 - pi/4 a/b: the second swaps sin and cos
-    s, c = sincos_octant((math.pi / 4.0) * ((b if wide else a) / r))
+    ratio = (b if wide else a) / r if r != 0.0 else 0.0
+    s, c = sincos_octant((math.pi / 4.0) * ratio)
     return r * (c if wide else s), r * (s if wide else c)
 
 

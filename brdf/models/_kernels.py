@@ -628,24 +628,41 @@ DRAW_BLOCK = 64
 
 
 @inline_kernel
-def _ggx_draws(p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz, pdf, work, chosen, l, o0, o1):
-    """The GGX lobe l's draws of :func:`mixture_draw`, a block of DRAW_BLOCK items at a time:
-    every item's sample into work space on the stack, in a loop without branches or stores
-    to the caller's arrays that LLVM runs in SIMD lanes (the last item repeated past the end
-    of the list), then the samples of the items that chose lobe l into place. Drawn one item at a
-    time, the sampler's chain of square roots and divisions was a fifth of a GGX furnace's
-    render (sampled with perf); in lanes it costs half as much per sample."""
+def _lane_draws(lam, p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz, pdf, work, chosen, l,
+                o0, o1):
+    """The draws of :func:`mixture_draw`'s lobe l, Lambertian (``lam``) or GGX, in blocks: the
+    items of up to DRAW_BLOCK of the list that chose lobe l, listed on the stack; their
+    samples into work space on the stack, in a loop without branches or stores to the caller's
+    arrays that LLVM runs in SIMD lanes (the last item repeated up to a whole vector); then
+    into place. Drawn one item at a time, GGX's chain of square roots and divisions was a fifth
+    of a GGX furnace's render (sampled with perf), and the cosine-weighted warp's division and
+    square root a twentieth of the point light's; in lanes each costs half as much per sample."""
     s = stack_array(1, DRAW_BLOCK, 4)
+    ids = stack_array(1, DRAW_BLOCK, 1)  # item numbers, exact in float64
     for t0 in range(0, n, DRAW_BLOCK):
-        m = min(DRAW_BLOCK, n - t0)
-        for k in range(DRAW_BLOCK):
-            j = idx[t0 + min(k, m - 1)]
-            s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3] = microfacet.sample_in_lanes(
-                microfacet.GGX, p[j * step][o0:o1], nch, ix[j], iy[j], iz[j], work[j, 1], u2[j])
-        for k in range(m):
-            j = idx[t0 + k]
+        m = 0
+        for t in range(t0, min(t0 + DRAW_BLOCK, n)):
+            j = idx[t]
             if chosen[j] == l:
-                ox[j], oy[j], oz[j], pdf[j] = s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3]
+                ids[0, m, 0] = j
+                m += 1
+        if m == 0:
+            continue
+        top = (m + 3) & -4
+        if lam:
+            for k in range(top):
+                j = int(ids[0, min(k, m - 1), 0])
+                s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3] = lambert.sample_in_lanes(
+                    iz[j], work[j, 1], u2[j])
+        else:
+            for k in range(top):
+                j = int(ids[0, min(k, m - 1), 0])
+                s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3] = microfacet.sample_in_lanes(
+                    microfacet.GGX, p[j * step][o0:o1], nch, ix[j], iy[j], iz[j], work[j, 1],
+                    u2[j])
+        for k in range(m):
+            j = int(ids[0, k, 0])
+            ox[j], oy[j], oz[j], pdf[j] = s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3]
 
 
 @inline_kernel
@@ -675,18 +692,16 @@ def mixture_draw(kinds, offs, p, step, nch, idx, n, ix, iy, iz, u1, u2, ox, oy, 
         chosen[j], work[j, 0], work[j, 1] = c, w, u
     for l in range(nl):
         kind, o0, o1 = kinds[l], offs[l], offs[l + 1]
-        if kind == K.GGX:
-            _ggx_draws(p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz, pdf, work, chosen, l,
-                       o0, o1)
+        if kind == K.GGX or kind == K.LAMBERT:
+            _lane_draws(kind == K.LAMBERT, p, step, nch, idx, n, ix, iy, iz, u2, ox, oy, oz,
+                        pdf, work, chosen, l, o0, o1)
             continue
-        lam = kind == K.LAMBERT
         for t in range(n):
             j = idx[t]
             if chosen[j] == l:
                 q = p[j * step][o0:o1]
-                ox[j], oy[j], oz[j], pdf[j] = (
-                    lambert.sample_(q, nch, ix[j], iy[j], iz[j], work[j, 1], u2[j]) if lam
-                    else lobe_sample(kind, q, nch, ix[j], iy[j], iz[j], work[j, 1], u2[j]))
+                ox[j], oy[j], oz[j], pdf[j] = lobe_sample(kind, q, nch, ix[j], iy[j], iz[j],
+                                                          work[j, 1], u2[j])
     for t in range(n):
         j = idx[t]
         for c in range(nch):

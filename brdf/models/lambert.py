@@ -49,12 +49,18 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[c, k, c] = v
 
 
+@inline_kernel
+def sample_in_lanes(iz, u1, u2):
+    """The cosine-weighted draw and its density z / pi (0 below either horizon), with selects
+    where it could branch, inlined into its caller: a loop over items that calls it runs in
+    SIMD lanes."""
+    x, y, z = square_to_cosine_hemisphere(u1, u2)
+    return x, y, z, (z * INV_PI if (iz > 0.0 and z > 0.0) else 0.0)
+
+
 @kernel
 def sample_(q, nch, ix, iy, iz, u1, u2):
-    x, y, z = square_to_cosine_hemisphere(u1, u2)
-    if iz <= 0.0 or z <= 0.0:
-        return x, y, z, 0.0
-    return x, y, z, z * INV_PI
+    return sample_in_lanes(iz, u1, u2)
 
 
 @kernel
