@@ -127,6 +127,7 @@ def main():
     wi, wo = random_pairs(args.pairs)
     model = brdf.models.Lambert(albedo=ALBEDO) + brdf.models.GGX(alpha=ALPHA, ks=KS)
     ours = model.eval(wi, wo)
+
     def new_memory():
         brdf.memory.trim()
         return model.eval(wi, wo)
