@@ -444,9 +444,11 @@ def _vertices(opts, geo, mats, lights, p):
             l, ul = pick_light(pmf, fl[U + PICK, j])
             u2 = fl[U + ON_LIGHT, j]
             if strategy != BSDF or (lights.ltype[l] != AREA and lights.ltype[l] != ENV):
-                ldx, ldy, ldz, dist, lpdf = sample_light(lights, geo, l, qx, qy, qz, ul, u2, li)
+                lvx, lvy, lvz, inv, dist, lpdf = sample_light(lights, geo, l, qx, qy, qz, ul, u2,
+                                                              li)
                 if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
-                        and ldx * nx + ldy * ny + ldz * nz > 0.0):
+                        and lvx * nx + lvy * ny + lvz * nz > 0.0):
+                    ldx, ldy, ldz = lvx * inv, lvy * inv, lvz * inv
                     k = il[NEE, j] = shadows
                     shadows += 1
                     sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
