@@ -386,12 +386,13 @@ def _cos_power(c, n):
 @inline_kernel
 def sample_light(lights, geo, l, px, py, pz, u1, u2, li):
     """Incident light at p from light l: returns ``(vx, vy, vz, inv, dist, pdf)`` with v
-    along the direction towards the light and ``v * inv`` its unit vector (v is unit and inv
-    1 where it comes so), dist the shadow-ray length (inf for directional and environment
-    light) and pdf its solid-angle density (inf for delta lights, 0 for none), and writes the
-    incident radiance (or, for delta lights, irradiance normal to d) into li[:3]. A caller
-    tests which side of a surface the light lies on from v, without waiting for the division
-    that makes it a unit vector (perf: the longest wait of next-event estimation)."""
+    pointing towards the light and ``v * inv`` the unit direction d (directional and
+    environment light give a unit v and inv 1), dist the shadow-ray length (inf for
+    directional and environment light) and pdf its solid-angle density (inf for delta lights,
+    0 for none), and writes the incident radiance (or, for delta lights, irradiance normal to
+    d) into li[:3]. A caller tests which side of a surface the light lies on from v, without
+    waiting for the division that makes it a unit vector (perf: the longest wait of
+    next-event estimation)."""
     t = lights.ltype[l]
     f = lights.lf[l]
     if t == POINT or t == SPOT or t == GONIO:
