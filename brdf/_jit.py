@@ -209,14 +209,60 @@ class _LinkedAsLoweredCompiler(_LinkedCompiler):
 _COMPILERS = {OPTIMISED: _LinkedCompiler, AS_LOWERED: _LinkedAsLoweredCompiler}
 
 
-def _compiler_options(linked):
-    """numba's options naming the compiler for a kernel linked ``linked`` (None: one Python
-    calls, compiled as numba would)."""
+def _njit(fn, linked, **options):
+    """numba's dispatcher of ``fn`` with :data:`_OPTIONS` and ``options``, for a kernel linked
+    ``linked`` into its callers (None: one Python calls, compiled as numba would).
+
+    A kernel only kernels call is compiled without numba's CPython wrapper, the function that
+    unboxes Python's arguments, calls the kernel and boxes its result: numba lowered and
+    optimised one for every such kernel, and callers linked them in, though only tests called
+    them (every kernel in one process, on an empty cache: 82-85 s with them, 75 s without).
+    Python calls of such a kernel run a twin (:func:`_twin_for_python`)."""
     if linked is None:
-        return {}
+        return numba.njit(fn, **_OPTIONS, **options)
     if linked not in _COMPILERS:
         raise ValueError(f"linked={linked!r}: expected None, {OPTIMISED!r} or {AS_LOWERED!r}")
-    return {"pipeline_class": _COMPILERS[linked]}
+    return _twin_for_python(numba.njit(fn, **_OPTIONS, **options, no_cpython_wrapper=True,
+                                       pipeline_class=_COMPILERS[linked]), options)
+
+
+#: Appended to the qualified name of a :func:`_twin_for_python` kernel's function.
+TWIN_SUFFIX = "__from_python"
+
+
+def _twin_for_python(dispatcher, options):
+    """``dispatcher`` (compiled without CPython wrappers), its calls from Python running a
+    twin: ``dispatcher.for_python()``, the same function compiled as numba would with
+    ``options``, made on the first call from Python.
+
+    numba's dispatcher calls from Python the overload its table of argument types matches,
+    through its wrapper. Overloads without one stay out of the table, so a call from Python
+    always asks the dispatcher to compile (``_compile_for_args``), which hands the call to the
+    twin. The twin's function is a copy of the kernel's named with :data:`TWIN_SUFFIX`, so
+    that numba caches and names its machine code apart; it calls the same kernels, and LLVM
+    optimises it as any kernel's code (tests call it)."""
+    def add_overload(cres):
+        # numba's add_overload without the table entry (whose function pointer would be 0)
+        dispatcher.overloads[tuple(cres.signature.args)] = cres
+
+    twin = []
+
+    def for_python():
+        if not twin:
+            fn = dispatcher.py_func
+            copy = type(fn)(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__,
+                            fn.__closure__)
+            copy.__qualname__, copy.__module__ = fn.__qualname__ + TWIN_SUFFIX, fn.__module__
+            copy.__doc__ = fn.__doc__
+            twin.append(_inputs_as_writable(quick_loading(
+                numba.njit(copy, **_OPTIONS, **options))))
+        return twin[0]
+
+    assert "add_overload" not in vars(dispatcher)  # numba's own, not yet wrapped
+    dispatcher.add_overload = add_overload
+    dispatcher._compile_for_args = lambda *args, **kws: for_python()
+    dispatcher.for_python = for_python
+    return dispatcher
 
 
 def _package_machine_code(codegen_library):
@@ -225,8 +271,8 @@ def _package_machine_code(codegen_library):
     (an :func:`inline_kernel`, or one compiled with ``linked=``) without optimisation (LLVM's
     ``-O0`` code generator, on a copy of its module).
 
-    Callers never run such a kernel's own code: they link its IR and compile it with theirs,
-    and only Python calls it (tests). Generating it with the optimising code generator took a
+    Nothing runs such a kernel's own code: callers link its IR and compile it with theirs, and
+    Python calls run its twin (:func:`_twin_for_python`). Generating it with the optimising code generator took a
     fifth of LLVM's code generation when every kernel compiled in one process (inline kernels;
     for all the other kernels only kernels call, 8 of its 19 s). The code generator rewrites the
     module it compiles, so it runs on a copy: the module callers link is left as it was. The
@@ -348,10 +394,11 @@ def kernel(fn=None, *, linked=None):
 
     ``linked`` declares a kernel that only other kernels call, and how its code is linked into
     theirs: OPTIMISED (its module optimised first, as any kernel's) or AS_LOWERED (as numba
-    lowered it, for each caller's optimisation to do once over the whole). Its own machine
-    code, which only Python calls (tests), is generated without optimisation
-    (:func:`_package_machine_code`), so a declared kernel called from Python runs slow code:
-    declare only kernels that nothing but kernels calls. Declaring the renderer's passes and
+    lowered it, for each caller's optimisation to do once over the whole). It has no CPython
+    wrapper, and its own machine code is generated without optimisation
+    (:func:`_package_machine_code`): a call from Python compiles and runs a twin
+    (:func:`_twin_for_python`), so declare only kernels that nothing but kernels (and tests)
+    calls. Declaring the renderer's passes and
     the model and fitting kernels AS_LOWERED left the bytes of images, evaluations, densities
     and albedos as they were and their speed within noise, and cut a cold compile of every
     kernel in one process by about a sixth (``docs/performance.md``). Inline kernels stay
@@ -359,8 +406,7 @@ def kernel(fn=None, *, linked=None):
     furnace about 4 % slower and the fit's loss and gradient at a third of its speed."""
     if fn is None:
         return functools.partial(kernel, linked=linked)
-    return _borrowing(_without_literals(quick_loading(numba.njit(
-        fn, **_OPTIONS, _nrt=False, **_compiler_options(linked)))))
+    return _borrowing(_without_literals(quick_loading(_njit(fn, linked, _nrt=False))))
 
 
 def nogil_kernel(fn):
@@ -380,8 +426,7 @@ def allocating_kernel(fn=None, *, linked=None):
     default; otherwise as :func:`kernel`, ``linked`` included)."""
     if fn is None:
         return functools.partial(allocating_kernel, linked=linked)
-    return _without_literals(quick_loading(numba.njit(fn, **_OPTIONS,
-                                                      **_compiler_options(linked))))
+    return _without_literals(quick_loading(_njit(fn, linked)))
 
 
 def inline_kernel(fn):
@@ -403,10 +448,11 @@ def inline_kernel(fn):
     functions up to four times (a first ``check`` of ``lambert + ggx`` spent 13.0 s compiling
     with them, 11.7 s without).
 
-    The kernel's own machine code, which only Python calls, is generated without optimisation
-    (:func:`_package_machine_code`)."""
-    return _always_inlined(_borrowing(_without_literals(quick_loading(numba.njit(
-        fn, **_OPTIONS, _nrt=False, **_compiler_options(OPTIMISED))), keep=_LITERAL)))
+    As a kernel declared ``linked=`` (:func:`kernel`), it has no CPython wrapper, its own
+    machine code is generated without optimisation (:func:`_package_machine_code`) and calls
+    from Python run a twin (:func:`_twin_for_python`)."""
+    return _always_inlined(_borrowing(_without_literals(quick_loading(
+        _njit(fn, OPTIMISED, _nrt=False)), keep=_LITERAL)))
 
 
 #: The parameters of an :func:`inline_kernel` whose constant arguments keep their literal type.

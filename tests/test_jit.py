@@ -190,15 +190,53 @@ def test_kernels_are_compiled_without_a_c_callable_wrapper(compile_with):
     compiled = compile_with(_doubled_into)
     dispatcher = getattr(compiled, "dispatcher", compiled)
     dispatcher._cache = numba.core.caching.NullCache()  # compile here, so the IR is there
+    linked = compile_with in _LINKED
+    if linked:  # compiled as a caller's typing compiles it; Python calls run its twin
+        dispatcher.compile((typeof(np.zeros(4)),) * 2)
+        dispatcher.for_python()._cache = numba.core.caching.NullCache()
     out = np.zeros(4)
     compiled(np.arange(4.0), out)
     assert out.tolist() == [0.0, 2.0, 4.0, 6.0]
     (cres,) = dispatcher.overloads.values()
     names = [fn.name for fn in cres.library.get_defined_functions()]
-    assert cres.fndesc.llvm_cpython_wrapper_name in names
+    assert cres.fndesc.llvm_func_name in names
+    # only a kernel that Python calls has numba's CPython wrapper
+    assert (cres.fndesc.llvm_cpython_wrapper_name in names) == (not linked)
     assert cres.fndesc.llvm_cfunc_wrapper_name not in names
     # marked for the unoptimised code generator (test_an_inline_kernel_is_cached_...) or not
-    assert (getattr(cres.library, "brdf_linked", None) is not None) == (compile_with in _LINKED)
+    assert (getattr(cres.library, "brdf_linked", None) is not None) == linked
+
+
+@pytest.mark.parametrize("compile_with", _LINKED)
+def test_python_calls_of_a_linked_kernel_run_its_twin(compile_with):
+    """A kernel only kernels call has no CPython wrapper, so its overloads stay out of numba's
+    table of argument types, and every call from Python goes to its twin: the same function,
+    under a name of its own, compiled with a wrapper. The kernel's own overloads are those its
+    callers' typing asked for."""
+    compiled = compile_with(_doubled_into)
+    compiled._cache = numba.core.caching.NullCache()
+    twin = compiled.for_python()
+    twin._cache = numba.core.caching.NullCache()
+    assert twin is compiled.for_python() and twin is not compiled
+    assert twin.py_func.__qualname__ == "_doubled_into__from_python"
+    assert twin.py_func.__code__ is _doubled_into.__code__
+    a = np.arange(4.0)
+    for _ in range(2):  # the second call too: no table entry of the kernel's matches it
+        out = np.zeros(4)
+        compiled(a, out)
+        np.testing.assert_array_equal(out, 2.0 * a)
+    assert not compiled.overloads and len(twin.overloads) == 1
+    frozen = a.view()
+    frozen.flags.writeable = False
+    out = np.zeros(4)
+    compiled(frozen, out)  # read-only inputs share the twin's writable specialisation
+    np.testing.assert_array_equal(out, 2.0 * a)
+    assert len(twin.overloads) == 1
+    compiled.compile((typeof(a), typeof(out)))
+    out = np.zeros(4)
+    compiled(a, out)
+    np.testing.assert_array_equal(out, 2.0 * a)
+    assert len(compiled.overloads) == 1 and len(twin.overloads) == 1
 
 
 def _times_three(a, k):
@@ -212,7 +250,9 @@ def test_a_kernel_linked_as_lowered_leaves_its_module_to_its_callers(linked):
     caller's optimisation to do once. Both compute the same."""
     compiled = kernel(linked=linked)(_times_three)
     compiled._cache = numba.core.caching.NullCache()  # compile here, so the IR is there
+    compiled.for_python()._cache = numba.core.caching.NullCache()
     assert compiled(np.arange(4.0), 2) == 6.0
+    compiled.compile((typeof(np.arange(4.0)), types.int64))  # as a caller's typing does
     (cres,) = compiled.overloads.values()
     callee = next(iter(_scaled.overloads.values())).fndesc.mangled_name
     calls = [line for line in str(cres.library._final_module).splitlines()
@@ -306,8 +346,8 @@ def test_linked_kernels_are_cached_and_linked_from_their_cache(tmp_path):
     """The own machine code of a kernel only kernels call (an inline kernel, or one declared
     ``linked=``) comes from LLVM's unoptimised code generator (``_package_machine_code``),
     and one linked AS_LOWERED has its module left unoptimised for its callers; each must
-    still run from Python, be saved to the disk cache, and load from it both to run and to be
-    linked into a caller compiled later."""
+    be saved to the disk cache and load from it to be linked into a caller compiled later,
+    and still run from Python (through its twin, cached too)."""
     import json
     import os
     (tmp_path / "toy_inline.py").write_text(_INLINE_TOY)
