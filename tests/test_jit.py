@@ -662,3 +662,27 @@ def test_the_thread_count_is_numbas_until_a_block_sets_its_own():
             assert thread_count() == 1
     finally:
         numba.set_num_threads(before)
+
+
+def test_numba_raises_no_event_at_each_call_into_llvm():
+    """numba's ``numba:llvm_lock`` events, two at each of the 290,000 calls into LLVM of a cold
+    compile of every kernel, each running the timers of every compile in progress, are
+    stopped (about 6 % of that compile); compiling still works."""
+    import brdf._jit as jit
+    from numba.core import event
+    assert jit._numba_lock_events() == []
+    heard = []
+
+    class Listener(event.Listener):
+        def on_start(self, e):
+            heard.append(e.kind)
+
+        def on_end(self, e):
+            pass
+
+    compiled = kernel(_doubled_into)
+    compiled._cache = numba.core.caching.NullCache()
+    with event.install_listener("numba:llvm_lock", Listener()):
+        out = np.zeros(3)
+        compiled(np.arange(3.0), out)
+    assert out.tolist() == [0.0, 2.0, 4.0] and heard == []
