@@ -8,8 +8,9 @@ as an invalid sample, instead of raising, and the loops stay free of checks that
 
 Where the cache lives, when it is stale and how it loads is :mod:`brdf._kernel_cache`.
 
-The typing hooks below, the private linkage of callees and ``_nrt=False`` reach into
-numba internals, so ``pyproject.toml`` pins numba to the minor release
+The typing hooks below, the private linkage of callees, ``_nrt=False``, the twins that take
+Python's calls of kernels without CPython wrappers and the removal of numba's LLVM-lock
+callbacks reach into numba internals, so ``pyproject.toml`` pins numba to the minor release
 ``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
 """
 
@@ -272,12 +273,12 @@ def _package_machine_code(codegen_library):
     ``-O0`` code generator, on a copy of its module).
 
     Nothing runs such a kernel's own code: callers link its IR and compile it with theirs, and
-    Python calls run its twin (:func:`_twin_for_python`). Generating it with the optimising code generator took a
-    fifth of LLVM's code generation when every kernel compiled in one process (inline kernels;
-    for all the other kernels only kernels call, 8 of its 19 s). The code generator rewrites the
-    module it compiles, so it runs on a copy: the module callers link is left as it was. The
-    machine code is cached as numba caches any: numba's engine loads the object its cache hook
-    hands it instead of compiling."""
+    Python calls run its twin (:func:`_twin_for_python`). Generating it with the optimising
+    code generator took a fifth of LLVM's code generation when every kernel compiled in one
+    process (inline kernels; for all the other kernels only kernels call, 8 of its 19 s). The
+    code generator rewrites the module it compiles, so it runs on a copy: the module callers
+    link is left as it was. The machine code is cached as numba caches any: numba's engine
+    loads the object its cache hook hands it instead of compiling."""
     finalize_specific = codegen_library._finalize_specific
 
     def finalize_package_code(library):
@@ -418,12 +419,12 @@ def kernel(fn=None, *, linked=None):
     wrapper, and its own machine code is generated without optimisation
     (:func:`_package_machine_code`): a call from Python compiles and runs a twin
     (:func:`_twin_for_python`), so declare only kernels that nothing but kernels (and tests)
-    calls. Declaring the renderer's passes and
-    the model and fitting kernels AS_LOWERED left the bytes of images, evaluations, densities
-    and albedos as they were and their speed within noise, and cut a cold compile of every
-    kernel in one process by about a sixth (``docs/performance.md``). Inline kernels stay
-    OPTIMISED: linked as lowered too, they moved the renders' bytes, rendered the white
-    furnace about 4 % slower and the fit's loss and gradient at a third of its speed."""
+    calls. Declaring the renderer's passes and the model and fitting kernels AS_LOWERED left
+    the bytes of images, evaluations, densities and albedos as they were and their speed
+    within noise, and cut a cold compile of every kernel in one process by about a sixth
+    (``docs/performance.md``). Inline kernels stay OPTIMISED: linked as lowered too, they
+    moved the renders' bytes, rendered the white furnace about 4 % slower and the fit's loss
+    and gradient at a third of its speed."""
     if fn is None:
         return functools.partial(kernel, linked=linked)
     return _borrowing(_without_literals(quick_loading(_njit(fn, linked, _nrt=False))))
