@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from numba.core.event import Event, EventStatus
 
@@ -195,3 +196,31 @@ def test_python_m_brdf_precompile_still_runs():
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith("fitting: ")
     assert done.stderr.startswith("brdf.precompile: compiling fitting in 2 processes")
+
+
+def test_the_library_calls_no_kernel_only_kernels_call_from_python(monkeypatch):
+    """A kernel declared to be called only by kernels (inline, or ``linked=``) has no CPython
+    wrapper: a call from Python compiles a twin of it (``brdf._jit``), which no kernel group
+    holds, so a user's first such call would compile outside ``brdf-fit precompile``. The
+    groups' parts, which run each group's public functions, make no such call."""
+    from brdf.precompile import compile_groups
+
+    def run_parts():
+        compile_groups(tuple(GROUPS))  # as brdf-fit precompile runs them, in this process
+
+    run_parts()  # first, so that every module they use is imported
+    calls = []
+    linked = {id(value): value for name, module in list(sys.modules.items())
+              if name == "brdf" or name.startswith("brdf.")
+              for value in list(vars(module).values()) if hasattr(value, "for_python")}
+    assert len(linked) > 50
+    for dispatcher in linked.values():
+        monkeypatch.setattr(dispatcher, "_compile_for_args",
+                            lambda *a, d=dispatcher, **k: calls.append(d) or d.for_python())
+    run_parts()
+    assert [d.py_func.__qualname__ for d in calls] == []
+    # and the hook sees a call from Python when one is made
+    from brdf.render import _intersect
+    assert _intersect.hit_sphere(np.array([0.0, 0.0, 0.0, 1.0]), 0.0, 0.0, 5.0, 0.0, 0.0,
+                                 -1.0, 10.0) == 4.0
+    assert [d.py_func.__qualname__ for d in calls] == ["hit_sphere"]
