@@ -345,10 +345,31 @@ def _extensions_when_compiling(dispatcher):
     return dispatcher
 
 
+class _CacheOnFirstUse:
+    """A dispatcher's disk cache until numba first reads it: then numba's cache of the
+    function (:class:`_QuickLoad` where it is numba's ``FunctionCache``), which takes its
+    place in the dispatcher.
+
+    Making the cache finds its folder, checks that it is writable by creating a file in it and
+    stamps it: 17 ms of each command's start for the 207 kernels ``import brdf.render``
+    defines, of which a render loads a handful."""
+
+    __slots__ = ("_dispatcher",)
+
+    def __init__(self, dispatcher):
+        self._dispatcher = dispatcher
+
+    def __getattr__(self, name):
+        cache = caching.FunctionCache(self._dispatcher.py_func)
+        if type(cache) is caching.FunctionCache:
+            cache.__class__ = _QuickLoad
+        self._dispatcher._cache = cache
+        return getattr(cache, name)
+
+
 def quick_loading(dispatcher):
-    """``dispatcher`` (with ``cache=True``), loading its cached machine code without numba's
-    full set-up (and typing its array arguments without importing ``numpy.ma``); its cache
-    left as it is when it caches otherwise (another numba version's cache)."""
-    if type(dispatcher._cache) is caching.FunctionCache:
-        dispatcher._cache.__class__ = _QuickLoad
+    """``dispatcher`` (made without numba's ``cache=True``) cached to disk, its cache made on
+    first use (:class:`_CacheOnFirstUse`), loading its cached machine code without numba's
+    full set-up, and typing its array arguments without importing ``numpy.ma``."""
+    dispatcher._cache = _CacheOnFirstUse(dispatcher)
     return _extensions_when_compiling(_typing_arrays_directly(dispatcher))
