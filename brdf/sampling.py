@@ -7,7 +7,7 @@ direction ``(x, y, z)`` in a local frame and, where useful, its solid-angle pdf.
 
 import math
 
-from ._jit import inline_kernel, kernel
+from ._jit import OPTIMISED, inline_kernel, kernel
 
 INV_PI = 1.0 / math.pi
 
@@ -22,7 +22,7 @@ _COS = (-1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.7557314179296
         2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sincos_octant(x):
     """``(sin x, cos x)`` for |x| <= pi/4, within 1 ulp of libm's."""
     z = x * x
@@ -80,7 +80,7 @@ def arccos(z):
     return arctan2(math.sqrt((1.0 - z) * (1.0 + z)), z)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sincos_turn(u):
     """``(sin 2 pi u, cos 2 pi u)``, u an angle in turns (the azimuth of a uniform number, or
     any other, negative too): u less its nearest quarter turn k / 4 (exact: the two are within
@@ -94,7 +94,7 @@ def sincos_turn(u):
     return flip * (c if odd else s), flip * (-s if odd else c)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def square_to_disk_concentric(u1, u2):
     """Shirley & Chiu 1997, "A Low Distortion Map Between Disk and Square", section 3."""
     a = 2.0 * u1 - 1.0
@@ -109,7 +109,7 @@ def square_to_disk_concentric(u1, u2):
     return r * (c if wide else s), r * (s if wide else c)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def square_to_cosine_hemisphere(u1, u2):
     """Malley's method: project the concentric disk up; pdf = cos(theta) / pi (PBR 4th ed. 13.6.3)."""
     x, y = square_to_disk_concentric(u1, u2)
@@ -117,7 +117,7 @@ def square_to_cosine_hemisphere(u1, u2):
     return x, y, z
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def square_to_cosine_power(u1, u2, n):
     """Direction about +z with density (n + 1) / (2 pi) cos^n(theta): cos(theta) = u1^(1/(n+1))."""
     z = (1.0 - u1) ** (1.0 / (n + 1.0))
@@ -126,7 +126,7 @@ def square_to_cosine_power(u1, u2, n):
     return s * cos_phi, s * sin_phi, z
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def cosine_power_pdf(cos_theta, n):
     """Density of :func:`square_to_cosine_power` in solid angle."""
     if cos_theta <= 0.0:
@@ -134,7 +134,7 @@ def cosine_power_pdf(cos_theta, n):
     return (n + 1.0) / (2.0 * math.pi) * cos_theta ** n
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def basis_from_axis(ax, ay, az):
     """Tangent and bitangent of a unit axis (Duff et al. 2017, JCGT 6(1), listing 3)."""
     sign = 1.0 if az >= 0.0 else -1.0
@@ -143,7 +143,7 @@ def basis_from_axis(ax, ay, az):
     return (1.0 + sign * ax * ax * a, sign * b, -sign * ax), (b, sign + ay * ay * a, -ay)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def from_axis_frame(x, y, z, ax, ay, az):
     """Map local ``(x, y, z)`` given about +z into the frame whose pole is the axis ``a``."""
     t, b = basis_from_axis(ax, ay, az)
@@ -152,14 +152,14 @@ def from_axis_frame(x, y, z, ax, ay, az):
             x * t[2] + y * b[2] + z * az)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def reflect_about(ix, iy, iz, hx, hy, hz):
     """Mirror ``i`` about the unit axis ``h``: 2 (i.h) h - i."""
     d = 2.0 * (ix * hx + iy * hy + iz * hz)
     return d * hx - ix, d * hy - iy, d * hz - iz
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def half_unit(ix, iy, iz, ox, oy, oz):
     """Normalised half vector and the cosine ``i.h``; a zero vector when ``i = -o``."""
     hx = ix + ox

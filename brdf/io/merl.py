@@ -18,7 +18,7 @@ import math
 
 import numpy as np
 
-from .._jit import kernel, prefetch, threaded_kernel
+from .._jit import OPTIMISED, kernel, prefetch, threaded_kernel
 from ..errors import FormatError, InputError
 from ..geometry import POLE_SINE, directions_from_half_diff, flat_pairs
 from ..sampling import arctan2
@@ -378,7 +378,7 @@ def fill_missing(grid):
 
 # --- compiled lookup ----------------------------------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def grid_coordinates(ix, iy, iz, ox, oy, oz):
     """Continuous grid coordinates ``(u, v, w)`` of a pair of directions above the horizon.
 
@@ -419,7 +419,7 @@ def grid_coordinates(ix, iy, iz, ox, oy, oz):
     return u, v, w
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _clamped_cell(x, n):
     """Lower node and fraction of a coordinate on nodes 0..n-1, clamped to the end nodes."""
     x = min(max(x, 0.0), n - 1.0)
@@ -427,7 +427,7 @@ def _clamped_cell(x, n):
     return i, x - i
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _nearest_node(u, v, w, shape):
     """Indices of the node nearest to (u, v, w); theta indices clamped, phi_d periodic."""
     i = min(int(u + 0.5), shape[0] - 1)
@@ -436,7 +436,7 @@ def _nearest_node(u, v, w, shape):
     return i, j, k
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _add_corner(grid, i, j, p, wt, acc):
     """``acc`` = (sums r, g, b, weights r, g, b) plus node (i, j, p) weighted by ``wt``; missing
     (NaN) samples are left out."""
@@ -454,7 +454,7 @@ def _add_corner(grid, i, j, p, wt, acc):
     return sr, sg, sb, wr, wg, wb
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _pair_coordinates(wi, wo, k, out, inside):
     """``(above, u, v, w)``: pair k's continuous grid coordinates, or ``above`` False (and
     ``out[k]`` zero, ``inside[k]`` False) when a direction is below the horizon."""
@@ -467,7 +467,7 @@ def _pair_coordinates(wi, wo, k, out, inside):
     return True, u, v, w
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _cell(u, v, w, shape):
     """Lower corner (i0, j0, p0) of the cell holding grid coordinates (u, v, w), the fractions
     within it, and the upper phi_d index p1 (wrapping over pi)."""
@@ -479,7 +479,7 @@ def _cell(u, v, w, shape):
     return i0, j0, p0, p1, fu, fv, w - p0
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def fetch_cell(grid, ix, iy, iz, ox, oy, oz, out, k):
     """The first half of a trilinear lookup of a pair above the horizon: its grid coordinates
     into ``out[k, :3]``, and its cell's corners asked of the caches (prefetched) without
@@ -495,7 +495,7 @@ def fetch_cell(grid, ix, iy, iz, ox, oy, oz, out, k):
             prefetch(grid, (i0 + di, j0 + dj, p1, 2))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def trilinear_at(grid, filled, out, k):
     """Trilinear lookup at the grid coordinates in ``out[k, :3]`` (:func:`fetch_cell`) into
     ``out[k, :3]``, over the valid corners of its cell (weights renormalised), the nearest

@@ -49,7 +49,7 @@ from numba.core.typeconv import Conversion
 from numba.core.typing.typeof import typeof_impl
 from numba.extending import intrinsic
 
-from .._jit import AS_LOWERED, allocating_kernel, inline_kernel, kernel, threaded_kernel
+from .._jit import AS_LOWERED, OPTIMISED, allocating_kernel, inline_kernel, kernel, threaded_kernel
 from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
@@ -322,7 +322,8 @@ def _generate(families=K.FAMILIES):
     # a kernel, not an inline one: the cubature's loop over nodes with every family's weights
     # forced into it ran the albedo 11-16 % slower than with the weight left to LLVM (kernels
     # over every family, one thread); over a model's own families the albedo is the same
-    parts.append(_function("kernel", "lobe_weight", params, _WEIGHT_DOC, lines))
+    parts.append(_function("kernel(linked=OPTIMISED)", "lobe_weight", params, _WEIGHT_DOC,
+                           lines))
     return "\n\n".join(parts)
 
 
@@ -553,7 +554,7 @@ def mixture_selection(kinds, offs, p, step, nch, idx, n, ix, iy, iz, sel):
             sel[j, l] = sel[j, l] / total if total > 0.0 else 1.0 / nl
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def lobe_value(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k):
     """:func:`lobe_eval` as a kernel of its own, for loops over directions that the formula
     cannot be vectorised in anyway: inlined into such a loop, the nine families took LLVM
@@ -561,7 +562,7 @@ def lobe_value(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k):
     lobe_eval(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def lobe_derivatives(kind, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
     """:func:`lobe_grad` as a kernel of its own (see :func:`lobe_value`), for loops over pairs
     that are not vectorised: one compiled copy of every family's derivatives serves them."""
@@ -950,7 +951,7 @@ def eval_array(kinds, offs, p, nch, wi, wo, out, low, high):
     return bad
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def grad_array(kinds, offs, p, nch, wi, wo, out, d):
     """Add f(wi, wo) to ``out`` (n, C) and set ``d[j, k, c]`` (P, n, C), zeroed by the caller, to
     df_c / dp[j] at pair k for every packed parameter p[j] (0 for choice codes), one pair at a
@@ -1032,7 +1033,7 @@ def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
                       min(BATCH, n - b * BATCH), space)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _edge_warp(t):
     """u = 10t^3 - 15t^4 + 6t^5 and du/dt = 30 t^2 (1 - t)^2 (the fade curve of Perlin 2002,
     "Improving Noise", SIGGRAPH): samplers have sqrt-like or logarithmic behaviour at the edges

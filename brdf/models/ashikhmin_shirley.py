@@ -11,7 +11,7 @@ rescaled) and the pdf is the mixture of both densities.
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import half_unit, reflect_about, square_to_cosine_hemisphere
 from . import _kinds, lambert
 from ._registry import register
@@ -52,7 +52,7 @@ class AshikhminShirley(Model):
 
 # --- kernels (layout: rd[C], rs[C], nu, nv) --------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def diffuse_factor(cos):
     """1 - (1 - cos / 2)^5, the angular factor of the diffuse term (eq. 5)."""
     m = 1.0 - 0.5 * cos
@@ -60,7 +60,7 @@ def diffuse_factor(cos):
     return 1.0 - m2 * m2 * m
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def half_exponent_d(nu, nv, hx, hy):
     """nu cos^2 phi_h + nv sin^2 phi_h (eq. 4), any value at h = n, where (n.h)^e = 1, and its
     derivatives cos^2 phi_h in nu and sin^2 phi_h in nv."""
@@ -72,7 +72,7 @@ def half_exponent_d(nu, nv, hx, hy):
     return nu * cx + nv * cy, cx, cy
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def half_pdf_d(nu, nv, hx, hy, hz):
     """Density of the half vector in solid angle (eq. 8) and its derivatives in nu and nv:
     d ln p_h / d nu = 1 / (2 (nu + 1)) + ln(n.h) de/dnu, likewise nv."""
@@ -84,13 +84,13 @@ def half_pdf_d(nu, nv, hx, hy, hz):
     return p, p * (0.5 / (nu + 1.0) + lh * e_u), p * (0.5 / (nv + 1.0) + lh * e_v)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def half_pdf(nu, nv, hx, hy, hz):
     """Density of the half vector in solid angle (eq. 8)."""
     return half_pdf_d(nu, nv, hx, hy, hz)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_half(nu, nv, u1, u2):
     """A half vector drawn from eq. 8 (eqs. 9-10).
 
@@ -106,7 +106,7 @@ def sample_half(nu, nv, u1, u2):
     return sin_t * c, sin_t * s, cos_t
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def albedo_parts(q, nch, iz):
     """Channel means of the specular and diffuse albedos at cos(theta_i) = iz.
 
@@ -123,7 +123,7 @@ def albedo_parts(q, nch, iz):
     return spec / nch, diff / nch
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def specular_weight(q, nch, iz):
     """Probability of sampling the specular term rather than the diffuse one: its share of the
     albedo estimates, which keeps the weights f cos / pdf flat."""
@@ -175,7 +175,7 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[2 * nch + 1, k, c] = spec_v * f
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
@@ -185,7 +185,7 @@ def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     return w * spec + (1.0 - w) * oz * INV_PI
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return 0.0, 0.0, 1.0, 0.0
@@ -205,7 +205,7 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
 ALBEDO_TERMS = 2
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out):
     """f cos(theta_o) / pdf of one term, each over the unit square of its own sampler, into
     ``out[0, :nch]``; returns cos(theta_o) and the smooth piece that holds the sample (0: none,
@@ -240,7 +240,7 @@ def albedo_weight_(q, nch, term, ix, iy, iz, u1, u2, out):
     return oz, 1
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     if iz <= 0.0:
         return 0.0

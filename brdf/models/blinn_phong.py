@@ -14,7 +14,7 @@ from Walter et al. 2007, eq. 14).
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import cosine_power_pdf, half_unit, reflect_about, square_to_cosine_power
 from . import _kinds
 from ._registry import register
@@ -56,7 +56,7 @@ class BlinnPhong(Model):
 
 # --- lobe kernels (layout: ks[C], n, normalization) ------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def normalization_d(n, which):
     """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``),
     and dN/dn."""
@@ -68,7 +68,7 @@ def normalization_d(n, which):
     return v, v * (1.0 / (n + 2.0) + 1.0 / (n + 4.0) - (1.0 - 0.5 * math.log(2.0) * p) / (p + n))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def normalization(n, which):
     """N(n) such that the albedo at normal incidence is ks (``EXACT``) or about ks (``APPROX``)."""
     return normalization_d(n, which)[0]
@@ -105,7 +105,7 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[nch, k, c] = q[c] * v_n
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
@@ -113,7 +113,7 @@ def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     return cosine_power_pdf(hz, q[nch]) / (4.0 * cos_d)  # |dh/dwo| = 1/(4 wo.h): Walter 2007 eq. 14
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return 0.0, 0.0, 1.0, 0.0
@@ -126,7 +126,7 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
     return ox, oy, oz, cosine_power_pdf(hz, n) / (4.0 * cos_d)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     """Mean ks times the albedo per unit ks at normal incidence (1 when exact)."""
     if iz <= 0.0:

@@ -6,7 +6,7 @@ kernels a term is a block of ``1 + 2 C`` floats: a mode code, then two per-chann
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ._registry import FRESNEL
 from .base import Component, Layout, Param
 
@@ -69,7 +69,7 @@ class Conductor(Fresnel):
               Param("k", 3.0, (0.0, 20.0), per_channel=True, doc="extinction coefficient"))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def schlick_d(f0, cos_i):
     """Schlick's F and dF/dF0 = 1 - (1 - cos)^5 (Schlick 1994, "An Inexpensive BRDF Model for
     Physically-based Rendering", eq. 15, differentiated)."""
@@ -85,7 +85,7 @@ def schlick(f0, cos_i):
     return schlick_d(f0, cos_i)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def dielectric_reflectance_d(cos_i, eta):
     """F and dF/deta of Walter et al. 2007, eq. 22 (total internal reflection gives 1, dF 0).
 
@@ -112,7 +112,7 @@ def dielectric_reflectance(cos_i, eta):
     return dielectric_reflectance_d(cos_i, eta)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def conductor_reflectance_d(cos_i, eta, k):
     """Unpolarised reflectance of a conductor (Born & Wolf 14.2; PBR 3rd ed. FrConductor) and its
     partial derivatives in eta and k, by differentiating each intermediate of that formula

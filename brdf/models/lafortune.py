@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..errors import ParameterError
 from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
@@ -95,7 +95,7 @@ def _log_peak(cx, cy, cz, n):
 
 # --- kernels (layout: cx[C], cy[C], cz[C], n[C]) ---------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _axis(q, nch, ix, iy, iz):
     """Sampling lobe: unit axis s / |s| of the channel-mean C (+z if s = 0), smallest exponent."""
     sx = channel_mean(q, 0, nch) * ix
@@ -145,7 +145,7 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[3 * nch + c, k, c] = f * math.log(dot) if live else 0.0
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
@@ -153,7 +153,7 @@ def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     return cosine_power_pdf(ax * ox + ay * oy + az * oz, n)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     ax, ay, az, n = _axis(q, nch, ix, iy, iz)
     lx, ly, lz = square_to_cosine_power(u1, u2, n)
@@ -163,7 +163,7 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
     return ox, oy, oz, cosine_power_pdf(lz, n)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     """Channel mean of |s|^n 2 pi / (n + 2) max(0, s_z / |s|), each channel's lobe albedo if it
     lay wholly above the horizon (the integral of cos^n about s times cos(theta_o))."""

@@ -2,7 +2,7 @@
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import square_to_cosine_hemisphere
 from . import _kinds
 from ._registry import register
@@ -27,7 +27,7 @@ class Lambert(Model):
     START = Start(scale=("albedo",))  # f = albedo / pi
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def per_albedo(iz, oz):
     """f per unit albedo: 1 / pi above the horizon (a select keeps the array loop vectorised)."""
     return INV_PI if (iz > 0.0 and oz > 0.0) else 0.0
@@ -58,18 +58,18 @@ def sample_in_lanes(iz, u1, u2):
     return x, y, z, (z * INV_PI if (iz > 0.0 and z > 0.0) else 0.0)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     return sample_in_lanes(iz, u1, u2)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
     return oz * INV_PI
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     return channel_mean(q, 0, nch) if iz > 0.0 else 0.0

@@ -12,7 +12,7 @@ d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import reflect_about, sincos_turn
 from . import _kinds
 from ._registry import FRESNEL, register
@@ -83,7 +83,7 @@ class BeckmannModel(Microfacet):
 
 # --- distributions ---------------------------------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def ndf_d(dist, ax, ay, hx, hy, hz):
     """Normal distribution D(h) in 1/sr (integral of D cos = 1) as a fraction, with its
     logarithmic partial derivatives in alpha_x and alpha_y as numerators over a common
@@ -106,14 +106,14 @@ def ndf_d(dist, ax, ay, hx, hy, hz):
             (2.0 * sx * sx - hz2) / ax, (2.0 * sy * sy - hz2) / ay, hz2)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def ndf(dist, ax, ay, hx, hy, hz):
     """Normal distribution D(h) in 1/sr (integral of D cos = 1); h need not be normalised."""
     num, den, _, _, _ = ndf_d(dist, ax, ay, hx, hy, hz)
     return num / den
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def smith_lambda_d(dist, ax, ay, x, y, z):
     """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX) and
     its partial derivatives in alpha_x and alpha_y."""
@@ -133,19 +133,19 @@ def smith_lambda_d(dist, ax, ay, x, y, z):
     return 0.5 * (math.erf(a) - 1.0) + e / (2.0 * a * SQRT_PI), w * ax * x * x, w * ay * y * y
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def smith_lambda(dist, ax, ay, x, y, z):
     """Smith's Lambda of a direction with z > 0 (Heitz 2014, eqs. 72, 83 Beckmann, 86 GGX)."""
     return smith_lambda_d(dist, ax, ay, x, y, z)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def ggx_root(ax, ay, x, y, z):
     """sqrt(z^2 + alpha_x^2 x^2 + alpha_y^2 y^2), so that GGX's 1 + Lambda = (z + root) / (2 z)."""
     return math.sqrt(z * z + ax * ax * x * x + ay * ay * y * y)  # Heitz 2014, eq. 86
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def g1(dist, ax, ay, x, y, z):
     """Smith masking G1 = 1 / (1 + Lambda) of a direction with z > 0 (Heitz 2014, eq. 43)."""
     if dist is GGX:
@@ -153,7 +153,7 @@ def g1(dist, ax, ay, x, y, z):
     return 1.0 / (1.0 + smith_lambda(dist, ax, ay, x, y, z))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon as its reciprocal, so that a
     caller multiplying it into other fractions divides once for all of them, with its
@@ -189,13 +189,13 @@ def visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     return s * (4.0 * iz * oz), -(li_x + lo_x), -(li_y + lo_y), s
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def visibility(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz):
     """G2 / (4 cos_i cos_o) for directions above the horizon (see :func:`visibility_d`)."""
     return 1.0 / visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _giles_erfinv(w, y):
     """erfinv(y) to single precision from w = -ln((1 - y)(1 + y)): Giles 2010, "Approximating
     the erfinv function", GPU Computing Gems, single-precision branch (fitted over the range of
@@ -225,7 +225,7 @@ def _giles_erfinv(w, y):
     return p * y
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def erfinv(y):
     """Inverse error function: Giles 2010's single-precision estimate refined by one Halley step
     on erf(x) = y (erf'' = -2x erf' makes it x - e / (1 + x e), e = (erf(x) - y) / erf'(x));
@@ -239,7 +239,7 @@ def erfinv(y):
     return x - e / (1.0 + x * e)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def beckmann_visible_slope_search(mu, u, halley):
     """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu >= 0, the
     number of CDF evaluations spent and the width of the final bracket.
@@ -320,14 +320,14 @@ def beckmann_visible_slope_search(mu, u, halley):
     return 0.5 * (lo + hi), MAX_STEPS, hi - lo  # not reached: width <= SLOPE_TOL by then
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def beckmann_visible_slope_x(mu, u):
     """Slope x of a unit-roughness Beckmann visible normal seen at cot(theta) = mu >= 0, to
     within SLOPE_TOL (see :func:`beckmann_visible_slope_search`)."""
     return beckmann_visible_slope_search(mu, u, True)[0]
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
     """A microfacet normal drawn from D_wi(h) = G1(wi) max(0, wi.h) D(h) / cos(theta_i)."""
     vx = ax * ix  # stretch to unit roughness
@@ -399,7 +399,7 @@ def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
             ((n_y * den_v + m_y * den) * u) if above else 0.0, hx, hy, hz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _cos_d(ix, iy, iz, hx, hy, hz):
     """wi.h with h the unit half vector of the unnormalised (hx, hy, hz)."""
     return (ix * hx + iy * hy + iz * hz) / math.sqrt(hx * hx + hy * hy + hz * hz)
@@ -487,7 +487,7 @@ def grad_rows_(dist, q, nch, wi, wo, out, d):
     return True
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
@@ -510,7 +510,7 @@ def sample_in_lanes(dist, q, nch, ix, iy, iz, u1, u2):
     return 0.0 if below else ox, 0.0 if below else oy, 1.0 if below else oz, pdf
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(dist, q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return 0.0, 0.0, 1.0, 0.0
@@ -521,7 +521,7 @@ def sample_(dist, q, nch, ix, iy, iz, u1, u2):
     return ox, oy, oz, pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def albedo_weight_(dist, q, nch, ix, iy, iz, u1, u2, out):
     """f cos(theta_o) / pdf at the sample drawn from (u1, u2), into ``out[0, :nch]``; returns
     cos(theta_o) and 1 if the sample is above the horizon, else 0 (no weight).
@@ -555,7 +555,7 @@ def albedo_weight_(dist, q, nch, ix, iy, iz, u1, u2, out):
     return oz, 1
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     if iz <= 0.0:
         return 0.0

@@ -2,7 +2,7 @@
 
 import math
 
-from .._jit import kernel
+from .._jit import OPTIMISED, kernel
 from . import _kinds
 from ._registry import FRESNEL, register
 from .base import Model, Nested, Param
@@ -29,14 +29,14 @@ class Mirror(Model):
               Nested("fresnel", "none", FRESNEL, doc="Fresnel term at cos(theta_i)"))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return -ix, -iy, iz, 0.0
     return -ix, -iy, iz, math.inf
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def reflectance_(q, nch, ch, iz):
     """Energy the delta lobe reflects in channel ``ch`` (its albedo at cos(theta_i) = iz)."""
     if iz <= 0.0:
@@ -44,7 +44,7 @@ def reflectance_(q, nch, ch, iz):
     return q[ch] * fresnel(q, nch, nch, ch, iz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     s = 0.0
     for c in range(nch):

@@ -14,7 +14,7 @@ conserving: at grazing incidence the albedo tends to rho (A + B / 2), above rho 
 sigma (1.011 rho at sigma = 0.2). Sampling is cosine-weighted, as Lambert's.
 """
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from . import _kinds, lambert
 from ._registry import register
 from .base import Model, Param, Start
@@ -83,16 +83,16 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[nch, k, c] = q[c] * v_s
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     return lambert.sample_(q, nch, ix, iy, iz, u1, u2)  # cosine-weighted
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     return lambert.pdf_(q, nch, ix, iy, iz, ox, oy, oz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     return channel_mean(q, 0, nch) if iz > 0.0 else 0.0

@@ -18,7 +18,7 @@ incidence.
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import cosine_power_pdf, from_axis_frame, square_to_cosine_power
 from . import _kinds
 from ._registry import register
@@ -80,7 +80,7 @@ class ModifiedPhong(Model):
 
 # --- lobe kernels (layout: ks[C], n) ---------------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def cos_alpha(ix, iy, iz, ox, oy, oz):
     """Cosine between ``wo`` and the mirror direction (-ix, -iy, iz) of ``wi``."""
     return -ix * ox - iy * oy + iz * oz
@@ -124,14 +124,14 @@ def grad_(form, q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[nch, k, c] = q[c] * v_n
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
     return cosine_power_pdf(cos_alpha(ix, iy, iz, ox, oy, oz), q[nch])
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return 0.0, 0.0, 1.0, 0.0
@@ -143,7 +143,7 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
     return ox, oy, oz, cosine_power_pdf(z, n)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(form, q, nch, ix, iy, iz):
     """Mean ks times the lobe's albedo per unit ks at normal incidence."""
     if iz <= 0.0:

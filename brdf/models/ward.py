@@ -20,7 +20,7 @@ pdf(wo) = p_h(h) / (4 wi.h).
 
 import math
 
-from .._jit import inline_kernel, kernel
+from .._jit import OPTIMISED, inline_kernel, kernel
 from ..sampling import half_unit, reflect_about
 from . import _kinds
 from ._registry import register
@@ -77,7 +77,7 @@ class Ward(Model):
 
 # --- the Ward distribution of half vectors ----------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def half_density(ax, ay, hx, hy, hz):
     """Solid-angle density p_h of a unit half vector h (Walter 2005; integrates to 1)."""
     if hz <= 0.0:
@@ -86,7 +86,7 @@ def half_density(ax, ay, hx, hy, hz):
     return math.exp(-e) / (math.pi * ax * ay * hz * hz * hz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_half(ax, ay, u1, u2):
     """A unit half vector drawn from :func:`half_density` by inverting its CDF (Walter 2005)."""
     t = 2.0 * math.pi * u2
@@ -151,7 +151,7 @@ def grad_(q, nch, ix, iy, iz, ox, oy, oz, out, k, d):
         d[nch + 1, k, c] = rho * v_y
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
@@ -160,7 +160,7 @@ def pdf_(q, nch, ix, iy, iz, ox, oy, oz):
     return half_density(q[nch], q[nch + 1], hx, hy, hz) / (4.0 * cos_d)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def sample_(q, nch, ix, iy, iz, u1, u2):
     if iz <= 0.0:
         return 0.0, 0.0, 1.0, 0.0
@@ -171,7 +171,7 @@ def sample_(q, nch, ix, iy, iz, u1, u2):
     return ox, oy, oz, pdf_(q, nch, ix, iy, iz, ox, oy, oz)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def hint_(q, nch, ix, iy, iz):
     if iz <= 0.0:
         return 0.0

@@ -45,8 +45,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from .._jit import (AS_LOWERED, allocating_kernel, fetch_add, in_threads, inline_kernel, kernel,
-                    nogil_kernel)
+from .._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_threads,
+                    inline_kernel, kernel, nogil_kernel)
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
@@ -68,7 +68,7 @@ _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 
 # --- random numbers ---------------------------------------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _mix(z):
     """SplitMix64's output function (Steele et al. 2014, "Fast Splittable Pseudorandom Number
     Generators", OOPSLA; constants of Vigna's reference code)."""
@@ -77,7 +77,7 @@ def _mix(z):
     return z ^ (z >> np.uint64(31))
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _stream(seed, pixel, s):
     """Starting state of the stream of sample s of a pixel: hashes of the three, chained."""
     return _mix(_mix(_mix(np.uint64(seed) + _GOLDEN) ^ np.uint64(pixel)) ^ np.uint64(s))
@@ -135,7 +135,7 @@ def _surface(geo, i, a, b, px, py, pz, uv):
     return nx, ny, nz, sx, sy, sz, e1x, e1y, e1z, u, v
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _frame(sx, sy, sz, tx, ty, tz, framed):
     """Orthonormal tangent and bitangent about the shading normal s: the tangent t itself where
     ``framed`` (a quad's, of unit length and orthogonal to s already), else following t
@@ -153,7 +153,7 @@ def _frame(sx, sy, sz, tx, ty, tz, framed):
             b[1] if along else sz * ax - sx * az, b[2] if along else sx * ay - sy * ax)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _offset(px, py, pz, nx, ny, nz, side):
     """Ray origin pushed off the surface along the normal, to the side ``side`` (+1 or -1), by
     a margin relative to the point's magnitude (avoids self-intersection)."""
@@ -161,7 +161,7 @@ def _offset(px, py, pz, nx, ny, nz, side):
     return px + side * eps * nx, py + side * eps * ny, pz + side * eps * nz
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _power(a, b):
     """Veach's power heuristic with beta = 2 (Veach 1997, thesis, eq. 9.13) for density a."""
     if a == math.inf:
@@ -496,7 +496,7 @@ def _frames(p):
         qp[DRAWN + 2, j] = lx * sx + ly * sy + lz * sz
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _lit(il, sh, j):
     """Whether path j's shadow ray reached its light (tracing spends an occluded ray's length);
     no branch, since that is a coin toss a branch predictor misses half the time."""

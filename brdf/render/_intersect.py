@@ -42,7 +42,7 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-from .._jit import FASTMATH, inline_kernel, kernel
+from .._jit import FASTMATH, OPTIMISED, inline_kernel, kernel
 
 SPHERE, QUAD, TRIANGLE = 0, 1, 2
 #: rows of ``planes``: normal, corner, dual vectors q1 and q2, triangle flag, sphere flag
@@ -131,7 +131,7 @@ def plane_distance(plane, ox, oy, oz, dx, dy, dz, tmax):
     return t if inside else math.inf
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist):
     """Distances in (0, tmax) of the ray to the planar primitives in the LANES slots of block
     ``blk`` into ``dist`` (:func:`plane_distance`): inf on a miss (and in padding), -1 for a
@@ -142,7 +142,7 @@ def leaf_distances(planes, blk, ox, oy, oz, dx, dy, dz, tmax, dist):
         dist[j] = -1.0 if planes[blk, PSPH, j] != 0.0 else t
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def plane_coordinates(planes, slot, ox, oy, oz, dx, dy, dz, t):
     """(a, b) of the hit at distance t on the planar primitive in ``slot``."""
     b, j = slot // LANES, slot % LANES
@@ -200,7 +200,7 @@ def _slot_hit(geo, dist, slot, j, ox, oy, oz, dx, dy, dz, tmax):
     return t
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _trace_lane(geo, stack, top, dist, start, ox, oy, oz, dx, dy, dz, rx, ry, rz, tmax,
                 any_hit):
     """One ray (origin o, direction d, reciprocal direction r) through the subtree of binary
@@ -396,7 +396,7 @@ PACKET = 512
 ALONE = 64
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _packet_enters(box, nd, ray, inv, tmax, enters, n):
     """How many of the first n lanes' rays enter box ``nd`` within (0, tmax[j]), each lane's
     verdict (0 or 1) in ``enters`` (:func:`_slab`). Idle lanes (tmax < 0) never enter."""
@@ -409,7 +409,7 @@ def _packet_enters(box, nd, ray, inv, tmax, enters, n):
     return count
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _packet_slot(geo, slot, ray, tmax, hit, n):
     """Test the primitive in ``slot`` against the first n lanes (:func:`hit_sphere`,
     :func:`plane_distance`): where it lies within (0, tmax[j]), tmax[j] becomes its distance
@@ -501,7 +501,7 @@ def trace_packet(geo, stack, dist, ray, inv, enters, tmax, hit, any_hit, n):
                 busy -= done
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _near_last(box, c0, c1, ray, n):
     """The children in stack order, the one the packet reaches first on top: along the axis
     that separates their centres most, the packet's mean direction decides (its rays' hits in

@@ -26,7 +26,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .._jit import allocating_kernel, inline_kernel, kernel
+from .._jit import OPTIMISED, allocating_kernel, inline_kernel, kernel
 from ._intersect import SPHERE
 from ._materials import wrapped_texels
 from .. import sampling
@@ -367,7 +367,7 @@ def pick_light(pmf, u):
     return n - 1, u
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _cos_power(c, n):
     """c^n for a spotlight's falloff: by squaring where n is a whole number up to 64 (c^2 is
     c * c, to the bit), else libm's pow, which costs 13 ns a call."""

@@ -31,7 +31,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from .._jit import allocating_kernel, inline_kernel, kernel, threaded_kernel
+from .._jit import OPTIMISED, allocating_kernel, inline_kernel, kernel, threaded_kernel
 from ..io.merl import fetch_cell, trilinear_at
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, continuous,
                                cosine_over_pdf, mixture_batch)
@@ -104,26 +104,26 @@ def material_params(mats, m, u, v, row):
 
 # --- measured tables: tabulated importance sampling --------------------------------------------
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _tab_bin(vz):
     """Incidence bin of cos(theta_v) = vz (bins uniform in theta)."""
     theta = arccos(max(vz, 0.0))
     return min(int(theta / (0.5 * math.pi) * TAB_THETA_I), TAB_THETA_I - 1)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _cell_solid_angle(i):
     return (_EDGE_COS[i] - _EDGE_COS[i + 1]) * (2.0 * math.pi / TAB_PHI)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _cell_density(row, c):
     """Density per solid angle of cell c of a bin's CDF ``row``: its probability over its solid
     angle."""
     return (row[c + 1] - row[c]) / _cell_solid_angle(c // TAB_PHI)
 
 
-@kernel
+@kernel(linked=OPTIMISED)
 def _defensive_mixture(tab, lz):
     """Density of the defensive mixture at l above the horizon (with v above it too): the
     tabulated part's density ``tab`` there, and cosine sampling's."""
