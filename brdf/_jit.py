@@ -1,10 +1,11 @@
 """The one place that decides how numba compiles the library's kernels.
 
 Kernels are cached to disk (:func:`brdf._kernel_cache.quick_loading`) so only the first run in
-an environment pays for compilation. Fast-math flags exclude ``nnan`` and ``ninf``: kernels test for NaN and rely on
-``inf`` (the pdf of a delta lobe), which the full fast-math set would let LLVM discard. Division
-follows IEEE (``error_model="numpy"``): a zero divisor gives inf or NaN, which the kernels treat
-as an invalid sample, instead of raising, and the loops stay free of checks that block SIMD.
+an environment pays for compilation. Fast-math flags exclude ``nnan`` and ``ninf``: kernels test
+for NaN and rely on ``inf`` (the pdf of a delta lobe), which the full fast-math set would let
+LLVM discard. Division follows IEEE (``error_model="numpy"``): a zero divisor gives inf or NaN,
+which the kernels treat as an invalid sample, instead of raising, and the loops stay free of
+checks that block SIMD.
 
 Where the cache lives, when it is stale and how it loads is :mod:`brdf._kernel_cache`.
 
