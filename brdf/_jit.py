@@ -26,6 +26,7 @@ from llvmlite import ir
 import numba
 import numpy as np
 from numba.core import cgutils, codegen, compiler, datamodel, types
+from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 
 from ._kernel_cache import quick_loading
@@ -223,10 +224,78 @@ def _njit(fn, linked, **options):
     Python calls of such a kernel run a twin (:func:`_twin_for_python`)."""
     if linked is None:
         return numba.njit(fn, **_OPTIONS, **options)
-    if linked not in _COMPILERS:
-        raise ValueError(f"linked={linked!r}: expected None, {OPTIMISED!r} or {AS_LOWERED!r}")
     return _twin_for_python(numba.njit(fn, **_OPTIONS, **options, no_cpython_wrapper=True,
                                        pipeline_class=_COMPILERS[linked]), options)
+
+
+class DeferredKernel:
+    """A kernel that only kernels call, its numba dispatcher made when it is first needed:
+    when a caller that is compiling types its call, or on any other use (a call from Python,
+    an attribute of the dispatcher), all of which it passes on to the dispatcher.
+
+    ``import brdf.render`` defines 207 kernels, and a command loads the machine code of a few
+    that Python calls; the others' dispatchers took 20 ms of every command's start to make
+    (numba reads each function's signature twice, registers its type, sets up its compiler).
+    Python names, its function (``py_func``) and :func:`when_made` need no dispatcher. To
+    replace one of the dispatcher's attributes for a while (a test's monkeypatch), replace it
+    on ``made()``: pytest restores an attribute through the object's own ``__dict__``, and
+    undoing it here deleted the dispatcher's hook that hands Python's calls to the twin."""
+
+    def __init__(self, fn, make):
+        vars(self).update(py_func=fn, _make=make, _made=None, _patches=[], __wrapped__=fn,
+                          __module__=fn.__module__, __name__=fn.__name__,
+                          __qualname__=fn.__qualname__, __doc__=fn.__doc__)
+
+    def made(self):
+        """The dispatcher, made now if it is not yet (with every :func:`when_made` patch)."""
+        dispatcher = vars(self)["_made"]
+        if dispatcher is None:
+            with global_compiler_lock:  # held already where a caller's typing makes it
+                dispatcher = vars(self)["_made"]
+                if dispatcher is None:
+                    dispatcher = self._make()
+                    for patch in self._patches:
+                        patch(dispatcher)
+                    vars(self)["_made"] = dispatcher
+        return dispatcher
+
+    def __getattr__(self, name):
+        return getattr(self.made(), name)
+
+    def __setattr__(self, name, value):
+        setattr(self.made(), name, value)
+
+    def __delattr__(self, name):
+        delattr(self.made(), name)
+
+    def __call__(self, *args, **kwargs):
+        return self.made()(*args, **kwargs)
+
+    def __reduce__(self):
+        return self.made().__reduce__()
+
+    def __repr__(self):
+        return f"<deferred kernel {self.__module__}.{self.__qualname__}>"
+
+
+def _deferred(fn, linked, make):
+    """A :class:`DeferredKernel` of ``fn`` made by ``make()`` where ``linked`` (a kernel only
+    kernels call), else the dispatcher ``make()`` itself."""
+    if linked is None:
+        return make()
+    if linked not in _COMPILERS:
+        raise ValueError(f"linked={linked!r}: expected None, {OPTIMISED!r} or {AS_LOWERED!r}")
+    return DeferredKernel(fn, make)
+
+
+def when_made(kernel, patch):
+    """Apply ``patch(dispatcher)`` to the dispatcher of ``kernel`` (a :class:`DeferredKernel`
+    or a dispatcher): now if it is made, else when it is."""
+    if isinstance(kernel, DeferredKernel) and vars(kernel)["_made"] is None:
+        vars(kernel)["_patches"].append(patch)
+    else:
+        patch(kernel.made() if isinstance(kernel, DeferredKernel) else kernel)
+    return kernel
 
 
 #: Appended to the qualified name of a :func:`_twin_for_python` kernel's function.
@@ -430,7 +499,8 @@ def kernel(fn=None, *, linked=None):
     and gradient at a third of its speed."""
     if fn is None:
         return functools.partial(kernel, linked=linked)
-    return _borrowing(_without_literals(quick_loading(_njit(fn, linked, _nrt=False))))
+    return _deferred(fn, linked, lambda: _borrowing(_without_literals(quick_loading(
+        _njit(fn, linked, _nrt=False)))))
 
 
 def nogil_kernel(fn):
@@ -450,7 +520,7 @@ def allocating_kernel(fn=None, *, linked=None):
     default; otherwise as :func:`kernel`, ``linked`` included)."""
     if fn is None:
         return functools.partial(allocating_kernel, linked=linked)
-    return _without_literals(quick_loading(_njit(fn, linked)))
+    return _deferred(fn, linked, lambda: _without_literals(quick_loading(_njit(fn, linked))))
 
 
 def inline_kernel(fn):
@@ -475,8 +545,8 @@ def inline_kernel(fn):
     As a kernel declared ``linked=`` (:func:`kernel`), it has no CPython wrapper, its own
     machine code is generated without optimisation (:func:`_package_machine_code`) and calls
     from Python run a twin (:func:`_twin_for_python`)."""
-    return _always_inlined(_borrowing(_without_literals(quick_loading(
-        _njit(fn, OPTIMISED, _nrt=False)), keep=_LITERAL)))
+    return _deferred(fn, OPTIMISED, lambda: _always_inlined(_borrowing(_without_literals(
+        quick_loading(_njit(fn, OPTIMISED, _nrt=False)), keep=_LITERAL))))
 
 
 #: The parameters of an :func:`inline_kernel` whose constant arguments keep their literal type.
