@@ -238,8 +238,9 @@ class DeferredKernel:
     (numba reads each function's signature twice, registers its type, sets up its compiler).
     Python names, its function (``py_func``) and :func:`when_made` need no dispatcher. To
     replace one of the dispatcher's attributes for a while (a test's monkeypatch), replace it
-    on ``made()``: pytest restores an attribute through the object's own ``__dict__``, and
-    undoing it here deleted the dispatcher's hook that hands Python's calls to the twin."""
+    on ``made()``: pytest restores an attribute through the object's own ``__dict__``, so its
+    undo here deletes the dispatcher's attribute, and without the hook that hands Python's
+    calls to the twin the next such call crashes."""
 
     def __init__(self, fn, make):
         vars(self).update(py_func=fn, _make=make, _made=None, _patches=[], __wrapped__=fn,
