@@ -346,9 +346,8 @@ def _extensions_when_compiling(dispatcher):
 
 
 class _CacheOnFirstUse:
-    """A dispatcher's disk cache until numba first reads it: then numba's cache of the
-    function (:class:`_QuickLoad` where it is numba's ``FunctionCache``), which takes its
-    place in the dispatcher.
+    """A dispatcher's disk cache until numba first reads it: then the function's
+    :class:`_QuickLoad` cache, which takes its place in the dispatcher.
 
     Making the cache finds its folder, checks that it is writable by creating a file in it and
     stamps it: 17 ms of each command's start for the 207 kernels ``import brdf.render``
@@ -360,10 +359,7 @@ class _CacheOnFirstUse:
         self._dispatcher = dispatcher
 
     def __getattr__(self, name):
-        cache = caching.FunctionCache(self._dispatcher.py_func)
-        if type(cache) is caching.FunctionCache:
-            cache.__class__ = _QuickLoad
-        self._dispatcher._cache = cache
+        cache = self._dispatcher._cache = _QuickLoad(self._dispatcher.py_func)
         return getattr(cache, name)
 
 
