@@ -399,6 +399,13 @@ def _quiet_llvm_lock():
 _quiet_llvm_lock()
 
 
+def parameter_names(fn):
+    """Names of the positional parameters of the plain function ``fn``, read from its code:
+    ``inspect.signature`` took 6 ms of each command's start over the package's kernels."""
+    code = fn.__code__
+    return code.co_varnames[:code.co_argcount]
+
+
 def _without_literals(dispatcher, keep=()):
     """``dispatcher``, typed for non-literal arguments wherever a kernel calls it, except the
     parameters named in ``keep``.
@@ -408,9 +415,7 @@ def _without_literals(dispatcher, keep=()):
     compiled again for each mix of constants and variables its callers passed. Constants gain
     nothing from it here, since LLVM inlines the callee and folds them all the same."""
     resolve = dispatcher.get_call_template
-    # the code's own names, not inspect.signature: 6 ms of each command's start for 199 kernels
-    code = dispatcher.py_func.__code__
-    kept = {i for i, name in enumerate(code.co_varnames[:code.co_argcount]) if name in keep}
+    kept = {i for i, name in enumerate(parameter_names(dispatcher.py_func)) if name in keep}
 
     def get_call_template(args, kws):
         return resolve(tuple(a if i in kept else types.unliteral(a) for i, a in enumerate(args)),
