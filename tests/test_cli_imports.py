@@ -1,16 +1,18 @@
 """What a ``brdf-fit`` command imports: only what it uses (issue 27, a warm command's start).
 
 Each command runs in a fresh interpreter, through ``brdf_cli.main.main`` as the installed script
-does, and the test reads ``sys.modules`` at its end. numpy and numba (with PyYAML, where
-installed, which numba imports on its own) are the floor of any command that runs a kernel; the
-libraries below belong to other commands (fitting, plots, the explorer, batches, images), and
-importing one costs 0.05-1 s of a command that never calls it. scipy among them: numba's own
-import of it, for a version check, is held off (:mod:`brdf._numba_import`).
+does, and the test reads ``sys.modules`` at its end. numpy and numba are the floor of any
+command that runs a kernel; the libraries below belong to other commands (fitting, plots, the
+explorer, batches, images), and importing one costs 0.05-1 s of a command that never calls it.
+scipy among them, and PyYAML and ``importlib.metadata``, which numba imports for a version
+check, its config file and its extensions (:mod:`brdf._numba_import`).
 """
 
 import json
 import subprocess
 import sys
+
+import pytest
 
 _RUN = """
 import json, sys
@@ -23,9 +25,10 @@ print(json.dumps({"status": status, "modules": sorted(sys.modules)}))
 """
 
 #: Modules no command below may import: scipy (the optimisers, interpolation), fitting, plots,
-#: the explorer, images, HDF5, clusters.
+#: the explorer, images, HDF5, clusters, what numba reads its config file and extensions with.
 FOREIGN = ("scipy", "matplotlib", "pyvista", "vtk", "panel", "bokeh", "PIL", "h5py", "dask",
-           "distributed", "nlopt", "emcee", "brdf.fitting", "brdf.viz", "brdf.capture")
+           "distributed", "nlopt", "emcee", "brdf.fitting", "brdf.viz", "brdf.capture", "yaml",
+           "importlib.metadata")
 
 
 def _imported(tmp_path, *argv):
@@ -86,3 +89,22 @@ def test_cached_kernels_leave_numba_extensions_to_the_first_compile(tmp_path):
                               text=True, timeout=900, cwd=tmp_path)
         assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True]
+
+
+_CONFIG = """
+import json
+import brdf
+from numba.core import config
+print(json.dumps(config.BOUNDSCHECK))
+"""
+
+
+def test_numba_still_reads_its_config_file(tmp_path):
+    """numba's reader of ``.numba_config.yaml`` is a stand-in for PyYAML, which a file in the
+    working directory has it import."""
+    pytest.importorskip("yaml")
+    (tmp_path / ".numba_config.yaml").write_text("boundscheck: 1\n")
+    done = subprocess.run([sys.executable, "-W", "error", "-c", _CONFIG], capture_output=True,
+                          text=True, timeout=900, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout.strip().splitlines()[-1]) == 1
