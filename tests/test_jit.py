@@ -336,18 +336,29 @@ caller = getattr(toy_callers, sys.argv[2])
 callees = ("scaled", "summed", "squares")
 values = {"caller": caller(a), **{k: getattr(toy_inline, k)(a, 2) for k in callees}}
 stats = {"caller": caller.stats, **{k: getattr(toy_inline, k).stats for k in callees}}
+
+
+def code_bytes(dispatcher):  # machine code in the objects of the overloads compiled here
+    import llvmlite.binding as ll
+    objects = [c.library._compiled_object for c in dispatcher.overloads.values()]
+    return sum(section.size() for o in objects if o
+               for section in ll.ObjectFileRef.from_data(o).sections() if section.is_text())
+
+
 print(json.dumps({"values": values,
+                  "code": {k: code_bytes(getattr(toy_inline, k).made()) for k in callees},
+                  "caller_code": code_bytes(caller),
                   "compiled": {k: len(s.cache_misses) for k, s in stats.items()},
                   "loaded": {k: len(s.cache_hits) for k, s in stats.items()}}))
 """
 
 
 def test_linked_kernels_are_cached_and_linked_from_their_cache(tmp_path):
-    """The own machine code of a kernel only kernels call (an inline kernel, or one declared
-    ``linked=``) comes from LLVM's unoptimised code generator (``_package_machine_code``),
-    and one linked AS_LOWERED has its module left unoptimised for its callers; each must
-    be saved to the disk cache and load from it to be linked into a caller compiled later,
-    and still run from Python (through its twin, cached too)."""
+    """A kernel only kernels call (an inline kernel, or one declared ``linked=``) has no
+    machine code of its own (``_package_machine_code``), and one linked AS_LOWERED has its
+    module left unoptimised for its callers; each must be saved to the disk cache and load
+    from it to be linked into a caller compiled later, and still run from Python (through
+    its twin, cached too)."""
     import json
     import os
     (tmp_path / "toy_inline.py").write_text(_INLINE_TOY)
@@ -365,6 +376,8 @@ def test_linked_kernels_are_cached_and_linked_from_their_cache(tmp_path):
     cold = run("first", "0")  # scaled 1, summed 0, squares 0
     assert cold["values"] == {"caller": 1.0, **callees}
     assert cold["compiled"] == {"caller": 1, "scaled": 1, "summed": 1, "squares": 1}
+    assert cold["code"] == {"scaled": 0, "summed": 0, "squares": 0}
+    assert cold["caller_code"] > 0  # the callees' code is the caller's
     warm = run("last", "a.shape[0] - 1")  # a caller new to the cache: 10 + 60 + 1500
     assert warm["values"] == {"caller": 1570.0, **callees}
     assert warm["compiled"] == {"caller": 1, "scaled": 0, "summed": 0, "squares": 0}
