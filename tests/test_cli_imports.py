@@ -108,3 +108,30 @@ def test_numba_still_reads_its_config_file(tmp_path):
                           text=True, timeout=900, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout.strip().splitlines()[-1]) == 1
+
+
+_STAND_INS = """
+import json, sys, types
+import brdf
+imported = {name: name in sys.modules for name in ("yaml", "importlib.metadata")}
+import importlib.metadata
+import yaml
+from numba.core import config, entrypoints
+print(json.dumps({"imported": imported,
+                  "modules": [type(m) is types.ModuleType for m in (yaml, importlib.metadata)],
+                  "numba_reads": [config.yaml.safe_load("a: 1") == {"a": 1},
+                                  entrypoints.importlib_metadata.version("numba")
+                                  == importlib.metadata.version("numba")]}))
+"""
+
+
+def test_other_imports_get_the_modules_numba_has_stand_ins_for(tmp_path):
+    """``import brdf`` imports neither PyYAML nor ``importlib.metadata``; an import of them
+    afterwards gets the module itself, and numba's stand-ins read from it."""
+    pytest.importorskip("yaml")
+    done = subprocess.run([sys.executable, "-c", _STAND_INS], capture_output=True, text=True,
+                          timeout=900, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out == {"imported": {"yaml": False, "importlib.metadata": False},
+                   "modules": [True, True], "numba_reads": [True, True]}
