@@ -11,9 +11,9 @@ command's start on a 2-core AMD host:
   compile. numba receives a stand-in (:class:`_OnFirstUse`) for each, which imports the module
   the first time numba reads from it; a warm command, which compiles nothing, never does.
 
-The stand-ins are in ``sys.modules`` only while numba loads, so any other import of these
-modules, then or later, gets the module itself. Nothing changes where numba is imported
-already, or where a module is imported already.
+The stand-ins are in ``sys.modules`` only while numba loads, so an import of these modules
+afterwards gets the module itself. Nothing changes where numba is imported already, or where
+a module is imported already.
 """
 
 import importlib
