@@ -31,11 +31,17 @@ FOREIGN = ("scipy", "matplotlib", "pyvista", "vtk", "panel", "bokeh", "PIL", "h5
            "importlib.metadata")
 
 
-def _imported(tmp_path, *argv):
-    done = subprocess.run([sys.executable, "-c", _RUN, *argv], capture_output=True,
+def _printed(tmp_path, source, *argv, flags=()):
+    """The JSON that Python source ``source`` prints last, run with arguments ``argv`` in a
+    fresh interpreter (with options ``flags``) in ``tmp_path``."""
+    done = subprocess.run([sys.executable, *flags, "-c", source, *argv], capture_output=True,
                           text=True, timeout=900, cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    out = json.loads(done.stdout.strip().splitlines()[-1])
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def _imported(tmp_path, *argv):
+    out = _printed(tmp_path, _RUN, *argv)
     return out["status"], set(out["modules"])
 
 
@@ -85,10 +91,8 @@ def test_cached_kernels_leave_numba_extensions_to_the_first_compile(tmp_path):
     """Finding numba's extensions reads every installed distribution's metadata (0.013 s
     with 118 installed); kernels loaded from the cache do not, a compile still does."""
     for _ in range(2):  # the first run compiles the check's kernels if the cache lacks them
-        done = subprocess.run([sys.executable, "-c", _EXTENSIONS], capture_output=True,
-                              text=True, timeout=900, cwd=tmp_path)
-        assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == [False, True]
+        out = _printed(tmp_path, _EXTENSIONS)
+    assert out == [False, True]
 
 
 _CONFIG = """
@@ -104,10 +108,7 @@ def test_numba_still_reads_its_config_file(tmp_path):
     working directory has it import."""
     pytest.importorskip("yaml")
     (tmp_path / ".numba_config.yaml").write_text("boundscheck: 1\n")
-    done = subprocess.run([sys.executable, "-W", "error", "-c", _CONFIG], capture_output=True,
-                          text=True, timeout=900, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout.strip().splitlines()[-1]) == 1
+    assert _printed(tmp_path, _CONFIG, flags=("-W", "error")) == 1
 
 
 _STAND_INS = """
@@ -129,9 +130,6 @@ def test_other_imports_get_the_modules_numba_has_stand_ins_for(tmp_path):
     """``import brdf`` imports neither PyYAML nor ``importlib.metadata``; an import of them
     afterwards gets the module itself, and numba's stand-ins read from it."""
     pytest.importorskip("yaml")
-    done = subprocess.run([sys.executable, "-c", _STAND_INS], capture_output=True, text=True,
-                          timeout=900, cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    assert out == {"imported": {"yaml": False, "importlib.metadata": False},
-                   "modules": [True, True], "numba_reads": [True, True]}
+    assert _printed(tmp_path, _STAND_INS) == {
+        "imported": {"yaml": False, "importlib.metadata": False},
+        "modules": [True, True], "numba_reads": [True, True]}
