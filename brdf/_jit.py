@@ -26,6 +26,7 @@ from llvmlite import ir
 import numba
 import numpy as np
 from numba.core import cgutils, codegen, compiler, datamodel, types
+from numba.core.typing import npydecl
 from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 
@@ -407,6 +408,33 @@ def _quiet_llvm_lock():
 
 
 _quiet_llvm_lock()
+
+
+def _array_operators_for_arrays():
+    """Patch numba's typing of NumPy's array operators (``npydecl.NumpyRulesArrayOperator``:
+    ``+``, ``*``, ``<`` ... of arrays) to decline operands none of which is an array at once.
+
+    numba tries every binary operator against that template, and it matched the operands to
+    one of the ufunc's loops (NumPy's casting rules, type by type) before it declined scalars:
+    each scalar ``+`` or ``<`` a kernel holds, at every round of type inference and again when
+    it was lowered. It declines the same operands as before (its unpatched code returns None
+    when, once ``Optional`` types are unwrapped, no operand is an array), so kernels are typed
+    and compiled as before; the unary and in-place templates already test this first."""
+    template = npydecl.NumpyRulesArrayOperator
+    generic = template.generic
+
+    def arrays_only(self, args, kws):
+        if not any(isinstance(a.type if isinstance(a, types.Optional) else a,
+                              types.ArrayCompatible) for a in args):
+            return None
+        return generic(self, args, kws)
+
+    template.generic = arrays_only
+    template._brdf_arrays_only = True
+
+
+if not getattr(npydecl.NumpyRulesArrayOperator, "_brdf_arrays_only", False):
+    _array_operators_for_arrays()
 
 
 def parameter_names(fn):

@@ -7,6 +7,7 @@ specialisation each. Threads share work through a queue (``in_threads``, ``share
 """
 
 import itertools
+import operator
 import shutil
 import subprocess
 import sys
@@ -699,3 +700,37 @@ def test_numba_raises_no_event_at_each_call_into_llvm():
         out = np.zeros(3)
         compiled(np.arange(3.0), out)
     assert out.tolist() == [0.0, 2.0, 4.0] and heard == []
+
+
+def _scalar_and_array_operators(x, a, b):
+    return x - 1.0 < 3.0, a + b, a * x
+
+
+def test_numpys_array_operators_decline_scalars_without_matching_a_loop(monkeypatch):
+    """numba tries each binary operator against NumPy's array-operator template; it declines
+    operands none of which is an array before it matches them to a ufunc's loops (which cost
+    a few per cent of a cold compile), and still types array operands, an ``Optional`` array
+    included, as NumPy's rules have them."""
+    from numba.core.typing import npydecl
+    from numba.np import numpy_support
+    matched = []
+    find = numpy_support.ufunc_find_matching_loop
+
+    def counted(ufunc, arg_types):
+        matched.append((ufunc.__name__, tuple(arg_types)))
+        return find(ufunc, arg_types)
+
+    monkeypatch.setattr(npydecl, "ufunc_find_matching_loop", counted)
+    compiled = numba.njit(_scalar_and_array_operators)
+    compiled._cache = numba.core.caching.NullCache()
+    less, total, scaled = compiled(0.5, np.arange(3.0), np.ones(3))
+    assert less and total.tolist() == [1.0, 2.0, 3.0] and scaled.tolist() == [0.0, 0.5, 1.0]
+    # the array operands' loops only: none for the scalars' - and <
+    assert {name for name, _ in matched} == {"add", "multiply"}
+
+    added = type("Added", (npydecl.NumpyRulesArrayOperator,), {"key": operator.add})
+    template = added(numba.core.registry.cpu_target.typing_context)
+    array = types.float64[::1]
+    assert template.generic((types.float64, types.float64), {}) is None
+    assert template.generic((types.Optional(array), types.float64), {}).return_type == array
+    assert template.generic((array, types.float64), {}).return_type == array
