@@ -26,6 +26,7 @@ from llvmlite import ir
 import numba
 import numpy as np
 from numba.core import cgutils, codegen, compiler, datamodel, types
+from numba.core import ir as numba_ir
 from numba.core.typing import npydecl
 from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
@@ -435,6 +436,53 @@ def _array_operators_for_arrays():
 
 if not getattr(npydecl.NumpyRulesArrayOperator, "_brdf_arrays_only", False):
     _array_operators_for_arrays()
+
+
+def _ir_variable_lists():
+    """Patch numba's ``ir.Inst._rec_list_vars``, which lists the variables an IR statement
+    reads or writes, to walk a statement's attributes in one loop.
+
+    numba's analyses list every statement's variables again at each pass (its use-def maps
+    alone: ten times per kernel), and its helper called itself for every attribute: a
+    statement's location, its strings and numbers each cost a call and four ``isinstance``
+    tests (4.7 million calls in a cold compile of every kernel). This one sorts each type once
+    into variable, instruction, sequence, mapping or other, and recurses only into sequences
+    and mappings. It lists the same variables in the same order: a ``Var``, an ``Inst``'s own
+    ``list_vars()``, a list's or tuple's items and a dict's values in turn, nothing else."""
+    var, inst = numba_ir.Var, numba_ir.Inst
+    kinds = {}
+
+    def kind(t):
+        k = kinds[t] = (1 if issubclass(t, var) else 2 if issubclass(t, inst)
+                        else 3 if issubclass(t, (list, tuple)) else 4 if issubclass(t, dict)
+                        else 0)
+        return k
+
+    def collect(items, out):
+        for v in items:
+            k = kinds.get(type(v))
+            if k is None:
+                k = kind(type(v))
+            if k == 1:
+                out.append(v)
+            elif k == 2:
+                out.extend(v.list_vars())
+            elif k == 3:
+                collect(v, out)
+            elif k == 4:
+                collect(v.values(), out)
+
+    def rec_list_vars(self, val):
+        out = []
+        collect((val,), out)
+        return out
+
+    numba_ir.Inst._rec_list_vars = rec_list_vars
+    numba_ir.Inst._brdf_variable_lists = True
+
+
+if not getattr(numba_ir.Inst, "_brdf_variable_lists", False):
+    _ir_variable_lists()
 
 
 def parameter_names(fn):

@@ -734,3 +734,47 @@ def test_numpys_array_operators_decline_scalars_without_matching_a_loop(monkeypa
     assert template.generic((types.float64, types.float64), {}) is None
     assert template.generic((types.Optional(array), types.float64), {}).return_type == array
     assert template.generic((array, types.float64), {}).return_type == array
+
+
+def _numbas_variable_list(val):
+    """numba 0.68's ``ir.Inst._rec_list_vars`` (which ``Stmt.list_vars`` applies to the
+    statement's attributes and ``Expr.list_vars`` to its operands), as a reference."""
+    from numba.core import ir
+    if isinstance(val, ir.Var):
+        return [val]
+    if isinstance(val, ir.Inst):
+        own = type(val).list_vars
+        if own is ir.Stmt.list_vars:
+            return _numbas_variable_list(vars(val))
+        if own is ir.Expr.list_vars:
+            return _numbas_variable_list(val._kws)
+        return val.list_vars()
+    if isinstance(val, (list, tuple)):
+        return [v for item in val for v in _numbas_variable_list(item)]
+    if isinstance(val, dict):
+        return [v for item in val.values() for v in _numbas_variable_list(item)]
+    return []
+
+
+def test_ir_statements_list_the_variables_numba_lists():
+    """The one-loop listing of an IR statement's variables (numba's use-def maps call it for
+    every statement at every pass) gives numba's own list, item for item, over the statements
+    of the renderer's, the models' and the fit's kernels."""
+    from numba.core import compiler, ir
+    from brdf.fitting import problem
+    from brdf.models import _kernels
+    from brdf.render import _integrator, _materials
+    assert ir.Inst._brdf_variable_lists
+    statements = 0
+    for module in (_integrator, _materials, _kernels, problem):
+        for value in list(vars(module).values()):
+            fn = getattr(value, "py_func", None)
+            if getattr(fn, "__module__", None) != module.__name__:
+                continue
+            for block in compiler.run_frontend(fn).blocks.values():
+                for stmt in block.body:
+                    mine, numbas = stmt.list_vars(), _numbas_variable_list(stmt)
+                    assert [v.name for v in mine] == [v.name for v in numbas], stmt
+                    assert all(a is b for a, b in zip(mine, numbas))
+                    statements += 1
+    assert statements > 10_000
