@@ -50,6 +50,7 @@ from numba.extending import intrinsic
 
 from .._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, inline_kernel, kernel,
                     parameter_names, threaded_kernel, when_made)
+from .._generated import compiled
 from .._kernel_cache import stamped_marker
 from . import _kinds as K
 from . import lambert, microfacet
@@ -333,9 +334,9 @@ for _name, _module in _FAMILY_MODULES.items():
     if globals().setdefault(_name, _module) is not _module:
         raise ImportError(f"family module name {_name!r} is taken in brdf.models._kernels")
 #: The generated source of the dispatchers (compiled under this file's name, so that numba
-#: caches them beside the file's other kernels).
+#: caches them beside the file's other kernels; its code is kept beside this file's bytecode).
 DISPATCH_SOURCE = _generate()
-exec(compile(DISPATCH_SOURCE, __file__, "exec"), globals())
+exec(compiled(DISPATCH_SOURCE, __file__), globals())
 
 
 # --- kernels specialised to a model's families -----------------------------------------------
