@@ -10,9 +10,10 @@ checks that block SIMD.
 Where the cache lives, when it is stale and how it loads is :mod:`brdf._kernel_cache`.
 
 The typing hooks below, the private linkage of callees, ``_nrt=False``, the twins that take
-Python's calls of kernels without CPython wrappers and the removal of numba's LLVM-lock
-callbacks reach into numba internals, so ``pyproject.toml`` pins numba to the minor release
-``tests/test_jit.py`` has passed on; widen the pin only after that test passes on the new one.
+Python's calls of kernels without CPython wrappers, the removal of numba's LLVM-lock
+callbacks, and the quicker array-operator typing and IR variable lists reach into numba
+internals, so ``pyproject.toml`` pins numba to the minor release ``tests/test_jit.py`` has
+passed on; widen the pin only after that test passes on the new one.
 """
 
 import contextlib
