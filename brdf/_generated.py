@@ -51,23 +51,19 @@ def compiled(source, filename):
 
 
 def _keep(path, data):
-    """Write ``data`` to ``path`` atomically and remove the file's other versions (other
-    digests); a directory that cannot be written is left as it is."""
-    import tempfile
+    """Write ``data`` to ``path`` as the package writes any output
+    (:class:`brdf.io.files.atomic_output`: atomically, readable as a plain ``open()`` makes a
+    file, a killed writer's temporary removed by the next) and remove the file's other
+    versions (other digests); a folder that cannot be written is left as it is."""
+    from .io.files import atomic_output
     folder, name = os.path.split(path)
     stem = name[:name.rindex("-") + 1]
     try:
         os.makedirs(folder, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".generated-")
-        try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-            os.replace(tmp, path)
-        except BaseException:
-            os.unlink(tmp)
-            raise
+        with atomic_output(path, force=True) as tmp:
+            tmp.write_bytes(data)
         for other in os.listdir(folder):
             if other.startswith(stem) and other != name and other.endswith(".bin"):
                 os.unlink(os.path.join(folder, other))
-    except OSError:
+    except OSError:  # brdf.errors.OutputError included
         pass

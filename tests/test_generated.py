@@ -28,6 +28,9 @@ def test_the_second_use_reads_the_code_the_first_kept(module_file, monkeypatch):
     first = _generated.compiled(SOURCE, module_file)
     path = _generated.cache_path(SOURCE, module_file)
     assert os.path.exists(path) and os.path.dirname(path).endswith("__pycache__")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(path).st_mode & 0o777 == 0o666 & ~mask  # readable by all, as a .pyc
 
     def no_compile(*args, **kwargs):
         raise AssertionError("compiled again")
