@@ -468,9 +468,15 @@ def trace_packet(geo, stack, dist, ray, inv, enters, tmax, hit, any_hit, n):
         if count == 0:
             continue
         if count <= ALONE:
+            # the lanes that enter, listed in place without branches (which lanes enter is a
+            # coin toss to the branch predictor), in lane order
+            m = 0
             for j in range(n):
-                if not enters[j]:
-                    continue
+                e = enters[j]
+                enters[m] = j
+                m += e
+            for i in range(m):
+                j = enters[i]
                 ox, oy, oz, dx, dy, dz = ray_at(ray, j)
                 t, slot = _trace_lane(geo, stack, top, dist, nd, ox, oy, oz, dx, dy, dz,
                                       inv[0, j], inv[1, j], inv[2, j], tmax[j], any_hit)
