@@ -53,7 +53,7 @@ from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHER
 from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light,
                       sample_light)
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
-                               with_last_axis)
+                               stack_array, with_last_axis)
 from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
 
 MIS, BSDF, LIGHT = 0, 1, 2
@@ -232,8 +232,8 @@ INT_LAYOUT = (
     ("NEE", 1, "the lane of sh that holds its shadow ray (-1: none)"),
     ("BLOCKER", 1, "what the shadow ray in each lane of sh hit"),
     ("END", 1, "whether the path ends at this vertex"),
-    ("ENTERS", 1, "work space: whether a ray enters a node (tracing), the lanes left to "
-                  "shade (_shade)"),
+    ("ENTERS", 1, "work space: whether a ray enters a node (tracing), the lanes whose rays "
+                  "escaped (_vertices), the lanes left to shade (_shade)"),
     ("CHOSEN", 1, "shading's work space: the lobe each path sampled"),
     ("FRAMED", 1, "the vertex's tangent (row A) is its frame's already (a quad's)"),
     ("COUNT", 1, "the lengths of the lists of lanes"),
@@ -375,7 +375,8 @@ def _vertices(opts, geo, mats, lights, p):
     prim, pmf, env_light = geo.prim, lights.pmf, lights.env_light
     strategy = opts[STRATEGY]
     nlights = pmf.shape[0]
-    shading = shadows = 0
+    shading = shadows = missed = 0
+    escaped = il[ENTERS]  # tracing's work row, free until the shadow rays are traced
     for j in range(PACKET):
         # MAT -1: no shading batch (_shade), unless the path shades here
         il[NEE, j], il[END, j], il[MAT, j] = -1, 0, -1
@@ -389,15 +390,8 @@ def _vertices(opts, geo, mats, lights, p):
         slot = il[HIT, j]
         if slot < 0:
             if env_light >= 0 and (strategy != LIGHT or specular):
-                w = 1.0
-                # one lookup of the map for the radiance and the density
-                le0, le1, le2, epdf = env_lookup(lights, env_light, dx, dy, dz)
-                if not specular and strategy == MIS:
-                    w = _power(fl[PREV, j], pmf[env_light] * epdf)
-                fl[RAD, j] += fl[THR, j] * w * le0
-                fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
-                fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
-                fl[EMIT, j], fl[EMIT + 1, j], fl[EMIT + 2, j] = w * le0, w * le1, w * le2
+                escaped[missed] = j  # sees the environment: _escaped adds it
+                missed += 1
             il[END, j] = 1
             continue
         t = fl[T, j]
@@ -462,8 +456,46 @@ def _vertices(opts, geo, mats, lights, p):
                         fl[LI + c, j] = li[c]
                     fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
         shading += 1
+    if missed > 0:
+        _escaped(opts, lights, p, escaped, missed)
     _frames(p)
     return shading, shadows
+
+
+#: Lanes per block of :func:`_escaped`.
+ESCAPED_BLOCK = 64
+
+
+@inline_kernel
+def _escaped(opts, lights, p, lanes, n):
+    """The environment seen by the paths in ``lanes[:n]``, whose rays escaped the scene: its
+    radiance along each ray, weighed by MIS against next-event estimation, into the path's
+    radiance and EMIT. In blocks: each lookup of the map (its arccosine, arctangent, pixel and
+    four texels) in a loop over the block without branches, into work space on the stack, so
+    that the lanes' lookups overlap; then into the lanes. One lane at a time, a lookup's
+    dependent loads and a coin-toss branch in its pixel search were a sixth of the
+    environment-map scene's render (one thread)."""
+    fl, il = p.fl, p.il
+    e = lights.env_light
+    pick = lights.pmf[e]
+    mis = opts[STRATEGY] == MIS
+    s = stack_array(1, ESCAPED_BLOCK, 4)
+    for t0 in range(0, n, ESCAPED_BLOCK):
+        m = min(ESCAPED_BLOCK, n - t0)
+        for k in range(m):
+            j = lanes[t0 + k]
+            s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3] = env_lookup(
+                lights, e, fl[D, j], fl[D + 1, j], fl[D + 2, j])
+        for k in range(m):
+            j = lanes[t0 + k]
+            le0, le1, le2, epdf = s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3]
+            w = 1.0
+            if il[SPECULAR, j] == 0 and mis:
+                w = _power(fl[PREV, j], pick * epdf)
+            fl[RAD, j] += fl[THR, j] * w * le0
+            fl[RAD + 1, j] += fl[THR + 1, j] * w * le1
+            fl[RAD + 2, j] += fl[THR + 2, j] * w * le2
+            fl[EMIT, j], fl[EMIT + 1, j], fl[EMIT + 2, j] = w * le0, w * le1, w * le2
 
 
 @kernel(linked=AS_LOWERED)
