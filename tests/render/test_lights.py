@@ -331,6 +331,38 @@ def test_map_lookup_finds_libms_pixel(tmp_path):
             assert (i, j) == (min(int(v[k] * h), h - 1), min(int(u[k] * w), w - 1)), k
 
 
+def test_map_lookup_settles_directions_at_pixel_edges(tmp_path):
+    """Directions on the edges of a 512 x 1024 map's pixels and within a few rounding steps of
+    them, where the polynomial angles may land in the next row or column: the lookup settles
+    each into the pixel whose edges hold it by the tables it reads (row i: cos(pi (i + 1) / h) <
+    y <= cos(pi i / h); column j: x cos a + z sin a >= 0 at its edge a_j, < 0 at a_j+1, to
+    rounding)."""
+    from brdf.render import _lights as L
+    h, w = 512, 1024
+    lights = _env_scene(render.Environment(1.0, _write_map(tmp_path / "m.exr", np.ones((h, w, 3))))
+                        ).compile().lights
+    ct, edge = lights.env_cos, lights.env_edge
+    rng = np.random.default_rng(11)
+    nudges = (-3e-9, -1e-15, 0.0, 1e-15, 3e-9)
+    rows, cols = rng.integers(1, h, 40), rng.integers(0, w, 40)
+    theta = np.concatenate([np.pi * rows / h + e for e in nudges]
+                           + [rng.uniform(0.1, np.pi - 0.1, 40 * len(nudges))])
+    phi = np.concatenate([rng.uniform(0.0, 2 * np.pi, 40 * len(nudges))]
+                         + [2 * np.pi * cols / w + e for e in nudges])
+    x, y, z = np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)
+    moved = 0
+    for k in range(len(theta)):
+        i, j, s, _, _ = L._env_pixel(lights, x[k], y[k], z[k])
+        assert 0 <= i < h and 0 <= j < w
+        assert (i == h - 1 or ct[i + 1] < y[k]) and (i == 0 or y[k] <= ct[i]), k
+        # the cross products to rounding: the kernel's are fused multiply-adds
+        assert edge[j, 0] * x[k] + edge[j, 1] * z[k] >= -1e-15, k
+        assert edge[j + 1, 0] * x[k] + edge[j + 1, 1] * z[k] < 1e-15, k
+        guess_i = min(int(theta[k] / np.pi * h), h - 1)
+        moved += i != guess_i
+    assert moved > 0  # some directions needed the step past the first guess
+
+
 def _sampled_map(tmp_path):
     from brdf.render import _lights as L
     rng = np.random.default_rng(5)
