@@ -778,3 +778,45 @@ def test_ir_statements_list_the_variables_numba_lists():
                     assert all(a is b for a, b in zip(mine, numbas))
                     statements += 1
     assert statements > 10_000
+
+
+def test_a_call_is_typed_once_per_argument_types_and_as_numba_types_it(monkeypatch):
+    """A function type's call is resolved through its templates once per argument types (type
+    inference asks again at every round), to the signature numba's own resolution gives;
+    a call no template accepts is refused each time, with numba's error."""
+    import math
+    from numba.core import errors, utils
+    from numba.core.types.functions import BaseFunction
+    from brdf.render import _integrator  # noqa: F401  (kernels whose calls were typed)
+    from brdf.models import _kernels
+    context = numba.core.registry.cpu_target.typing_context
+    context.refresh()
+    _kernels.eval_array(np.array([0]), np.array([0, 3]), np.full(3, 0.5), 3,
+                        np.array([[0.0, 0.0, 1.0]]), np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)),
+                        0.99, 1.01)
+    remembered = types.Function._brdf_remembered
+    assert len(remembered) > 50
+    for (fnty, ctx, _, args, kws), sig in list(remembered.items()):
+        if ctx is context:
+            assert BaseFunction.get_call_type(fnty, context, args, dict(kws)) == sig
+
+    orders = []
+    order = utils.order_by_target_specificity
+
+    def counted(*args, **kwargs):
+        orders.append(args)
+        return order(*args, **kwargs)
+
+    monkeypatch.setattr(utils, "order_by_target_specificity", counted)
+    copysign = context.resolve_value_type(math.copysign)
+    args = (types.float32, types.int16)
+    first = copysign.get_call_type(context, args, {})
+    tried = len(orders)
+    assert copysign.get_call_type(context, args, {}) == first
+    assert copysign.get_call_type(context, args, {}) == first
+    assert first is not None and len(orders) == tried
+    for _ in range(2):
+        before = len(orders)
+        with pytest.raises(errors.TypingError):
+            copysign.get_call_type(context, (types.unicode_type, types.float64), {})
+        assert len(orders) > before
