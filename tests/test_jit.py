@@ -707,7 +707,20 @@ def _scalar_and_array_operators(x, a, b):
     return x - 1.0 < 3.0, a + b, a * x
 
 
-def test_numpys_array_operators_decline_scalars_without_matching_a_loop(monkeypatch):
+@pytest.fixture
+def calls_typed_anew():
+    """The remembered call types (``brdf._jit._call_types_remembered``) forgotten for the
+    test, so that it sees numba type its calls, and restored after it."""
+    remembered = types.Function._brdf_remembered
+    saved = dict(remembered)
+    remembered.clear()
+    yield
+    remembered.clear()
+    remembered.update(saved)
+
+
+def test_numpys_array_operators_decline_scalars_without_matching_a_loop(monkeypatch,
+                                                                          calls_typed_anew):
     """numba tries each binary operator against NumPy's array-operator template; it declines
     operands none of which is an array before it matches them to a ufunc's loops (which cost
     a few per cent of a cold compile), and still types array operands, an ``Optional`` array
