@@ -230,15 +230,31 @@ def precompile(groups=tuple(GROUPS), processes=PROCESSES):
         For each group, as :func:`compile_groups` gives it: the seconds its parts took
         (compiling, or loading from the cache; summed over the processes) and how many kernels
         numba compiled.
+
+    Raises
+    ------
+    MainGuardError
+        When the workers die as they start because the calling script makes this call at its
+        top level: spawned workers import the script again, so the call belongs under
+        ``if __name__ == "__main__":``.
     """
-    from concurrent.futures import ProcessPoolExecutor
-    import multiprocessing
+    from concurrent.futures.process import BrokenProcessPool
+    from . import spawned
+    if spawned.starting_a_worker():
+        # the script's top level, run again in a worker as it starts: end this worker quietly
+        # (the parent raises MainGuardError) rather than with multiprocessing's traceback
+        raise SystemExit(1)
     check_groups(groups)
     parts = _parts(groups)
-    with ProcessPoolExecutor(processes_used(groups, processes),
-                             mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {part: pool.submit(_run, [part]) for part in parts}
-        done = {part: future.result()[0] for part, future in futures.items()}
+    workers, started = spawned.pool(processes_used(groups, processes))
+    try:
+        with workers:
+            futures = {part: workers.submit(_run, [part]) for part in parts}
+            done = {part: future.result()[0] for part, future in futures.items()}
+    except BrokenProcessPool:
+        if started.value:  # a worker died after starting: not the main module's doing
+            raise
+        raise spawned.unguarded_main("brdf.precompile.precompile") from None
     return _totals(groups, done)
 
 

@@ -228,3 +228,23 @@ def test_the_library_calls_no_kernel_only_kernels_call_from_python(monkeypatch):
     assert _intersect.hit_sphere(np.array([0.0, 0.0, 0.0, 1.0]), 0.0, 0.0, 5.0, 0.0, 0.0,
                                  -1.0, 10.0) == 4.0
     assert [d.py_func.__qualname__ for d in calls] == ["hit_sphere"]
+
+
+def test_a_script_without_the_main_guard_gets_one_line_saying_what_to_add(tmp_path):
+    """precompile's workers are spawned: each imports the script again as it starts, which at
+    its top level calls precompile again. The workers end quietly and the script gets
+    MainGuardError (not BrokenProcessPool after a traceback per worker)."""
+    script = tmp_path / "unguarded.py"
+    script.write_text("from brdf.precompile import precompile\n"
+                      "print(precompile(('tables',), processes=1))\n", encoding="utf-8")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=600, cwd=tmp_path, env=env)
+    assert done.returncode == 1 and done.stdout == ""
+    assert done.stderr.splitlines()[-1] == (
+        "brdf.errors.MainGuardError: worker processes stopped as they started: each runs "
+        "the top level of unguarded.py again, so brdf.precompile.precompile must be called "
+        "under 'if __name__ == \"__main__\":'")
+    assert done.stderr.count("Traceback") == 1
+    assert "BrokenProcessPool" not in done.stderr and "bootstrapping" not in done.stderr

@@ -21,8 +21,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import arguments
-from ..errors import BRDFError, InputError, MainGuardError
+from .. import arguments, spawned
+from ..errors import BRDFError, InputError
 from ..io.files import file_sha256
 from ..progress import task
 
@@ -156,45 +156,21 @@ def _row(path, report_path, status, report=None, error=None):
     return row
 
 
-def _init_worker(threads, started, settings):
-    """Set up a local worker, once it has started: its share of the cores, its parent's
-    reporting (quiet, program name), and one more on the count of started workers."""
+def _init_worker(threads, settings):
+    """Set up a local worker, once it has started: its share of the cores and its parent's
+    reporting (quiet, program name)."""
     import numba
     from ..progress import configure
     numba.set_num_threads(threads)
     configure(*settings)
-    with started.get_lock():
-        started.value += 1
 
 
 def _local_pool(jobs):
-    """A process pool of ``jobs`` workers sharing the cores (spawned: numba's threads and
-    fork do not mix), and the shared count of its workers that finished starting."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    """A pool of ``jobs`` spawned workers sharing the cores (:func:`brdf.spawned.pool`), and
+    the shared count of its workers that finished starting."""
     from ..progress import current
     threads = max(1, (os.cpu_count() or 1) // jobs)
-    context = multiprocessing.get_context("spawn")
-    started = context.Value("i", 0)
-    pool = ProcessPoolExecutor(jobs, mp_context=context, initializer=_init_worker,
-                               initargs=(threads, started, tuple(current())))
-    return pool, started
-
-
-def _starting_a_worker():
-    """Whether this process is a spawned worker still importing its parent's main module
-    (the script): it reached :func:`batch` from the script's top level. multiprocessing
-    marks that phase with this attribute, and refuses to start processes in it."""
-    import multiprocessing
-    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
-
-
-def _unguarded_main(script):
-    """The error for workers that all died while starting: each one ran the script's top
-    level again (spawn imports it), which must not call brdf.batch."""
-    return MainGuardError(f"worker processes stopped as they started: each runs the top level "
-                          f"of {script or 'the main script'} again, so brdf.batch must be "
-                          "called under 'if __name__ == \"__main__\":'")
+    return spawned.pool(jobs, _init_worker, (threads, tuple(current())))
 
 
 def _dask_client(scheduler):
@@ -238,9 +214,7 @@ def _submit(todo, spec, options, jobs, scheduler):
         except BrokenProcessPool:
             if started.value:  # a worker died after starting: not the main module's doing
                 raise
-            import sys
-            script = getattr(sys.modules.get("__main__"), "__file__", None)
-            raise _unguarded_main(script and os.path.basename(script)) from None
+            raise spawned.unguarded_main("brdf.batch") from None
 
 
 def _write_summary(result, outdir):
@@ -296,7 +270,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
         its top level: spawned workers import the script again, so the call belongs under
         ``if __name__ == "__main__":``.
     """
-    if _starting_a_worker():
+    if spawned.starting_a_worker():
         # the script's top level, run again in a worker as it starts: end this worker quietly
         # (the parent raises MainGuardError) rather than with multiprocessing's traceback
         raise SystemExit(1)
