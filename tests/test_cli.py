@@ -40,6 +40,19 @@ def assert_one_error_line(err, *fragments):
         assert fragment in lines[0]
 
 
+def assert_main_guard_error(done, script, call):
+    """``done`` (a finished script without the main guard that made ``call``) ended with
+    exit status 1 and MainGuardError's one line, after one traceback (not one per worker and
+    ``BrokenProcessPool``)."""
+    assert done.returncode == 1
+    assert done.stderr.splitlines()[-1] == (
+        "brdf.errors.MainGuardError: worker processes stopped as they started: each runs "
+        f"the top level of {script} again, so {call} must be called under "
+        "'if __name__ == \"__main__\":'")
+    assert done.stderr.count("Traceback") == 1
+    assert "BrokenProcessPool" not in done.stderr and "bootstrapping" not in done.stderr
+
+
 # --- help and version ------------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv", [["--help"], ["models", "--help"], ["check", "--help"],
