@@ -238,23 +238,14 @@ def precompile(groups=tuple(GROUPS), processes=PROCESSES):
         top level: spawned workers import the script again, so the call belongs under
         ``if __name__ == "__main__":``.
     """
-    from concurrent.futures.process import BrokenProcessPool
     from . import spawned
-    if spawned.starting_a_worker():
-        # the script's top level, run again in a worker as it starts: end this worker quietly
-        # (the parent raises MainGuardError) rather than with multiprocessing's traceback
-        raise SystemExit(1)
+    spawned.stop_if_starting()
     check_groups(groups)
     parts = _parts(groups)
     workers, started = spawned.pool(processes_used(groups, processes))
-    try:
-        with workers:
-            futures = {part: workers.submit(_run, [part]) for part in parts}
-            done = {part: future.result()[0] for part, future in futures.items()}
-    except BrokenProcessPool:
-        if started.value:  # a worker died after starting: not the main module's doing
-            raise
-        raise spawned.unguarded_main("brdf.precompile.precompile") from None
+    with spawned.main_guarded(started, "brdf.precompile.precompile"), workers:
+        futures = {part: workers.submit(_run, [part]) for part in parts}
+        done = {part: future.result()[0] for part, future in futures.items()}
     return _totals(groups, done)
 
 

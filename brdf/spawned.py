@@ -7,20 +7,24 @@ again in every worker, which multiprocessing refuses with a traceback per worker
 ``BrokenProcessPool``. The functions here end such workers quietly and give the script one
 :class:`~brdf.errors.MainGuardError` saying what to add."""
 
+import contextlib
 import os
 import sys
 
 from .errors import MainGuardError
 
-__all__ = ["starting_a_worker", "pool", "unguarded_main"]
+__all__ = ["stop_if_starting", "pool", "main_guarded"]
 
 
-def starting_a_worker():
-    """Whether this process is a spawned worker still importing its parent's main module
-    (the script): it reached the caller from the script's top level. multiprocessing marks
-    that phase with this attribute, and refuses to start processes in it."""
+def stop_if_starting():
+    """End this process quietly (exit status 1) if it is a spawned worker still importing its
+    parent's main module (the script), which reached the caller from its top level: its
+    parent then raises the one line of :func:`main_guarded`, rather than multiprocessing's
+    traceback per worker. multiprocessing marks that phase with ``_inheriting``, and refuses
+    to start processes in it."""
     import multiprocessing
-    return bool(getattr(multiprocessing.current_process(), "_inheriting", False))
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        raise SystemExit(1)
 
 
 def _init_worker(started, initializer, initargs):
@@ -33,7 +37,7 @@ def _init_worker(started, initializer, initargs):
 def pool(processes, initializer=None, initargs=()):
     """A ``ProcessPoolExecutor`` of ``processes`` spawned workers, each running
     ``initializer(*initargs)`` as it starts, and the shared count of its workers that
-    finished starting (read by :func:`unguarded_main`'s callers)."""
+    finished starting (for :func:`main_guarded`)."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
     context = multiprocessing.get_context("spawn")
@@ -42,11 +46,19 @@ def pool(processes, initializer=None, initargs=()):
                                initargs=(started, initializer, initargs)), started
 
 
-def unguarded_main(call):
-    """The error for a pool whose workers all died while starting: each ran the script's top
-    level again, which must not make ``call``."""
-    script = getattr(sys.modules.get("__main__"), "__file__", None)
-    return MainGuardError(f"worker processes stopped as they started: each runs the top level "
-                          f"of {os.path.basename(script) if script else 'the main script'} "
-                          f"again, so {call} must be called under "
-                          "'if __name__ == \"__main__\":'")
+@contextlib.contextmanager
+def main_guarded(started, call):
+    """Within the block, a pool whose workers all died while starting (``started``, the count
+    :func:`pool` gives, still 0) raises MainGuardError: each ran the script's top level again,
+    which must not make ``call``. A pool broken after a worker started raises as it was."""
+    from concurrent.futures.process import BrokenProcessPool
+    try:
+        yield
+    except BrokenProcessPool:
+        if started.value:  # a worker died after starting: not the main module's doing
+            raise
+        script = getattr(sys.modules.get("__main__"), "__file__", None)
+        script = os.path.basename(script) if script else "the main script"
+        raise MainGuardError(f"worker processes stopped as they started: each runs the top "
+                             f"level of {script} again, so {call} must be called under "
+                             "'if __name__ == \"__main__\":'") from None

@@ -237,9 +237,8 @@ def test_a_script_without_the_main_guard_gets_one_line_saying_what_to_add(tmp_pa
     script = tmp_path / "unguarded.py"
     script.write_text("from brdf.precompile import precompile\n"
                       "print(precompile(('tables',), processes=1))\n", encoding="utf-8")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    # the checkout comes first on the subprocess's path (conftest's PYTHONPATH)
     done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                          timeout=600, cwd=tmp_path, env=env)
+                          timeout=600, cwd=tmp_path)
     assert done.stdout == ""
     assert_main_guard_error(done, "unguarded.py", "brdf.precompile.precompile")

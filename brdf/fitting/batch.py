@@ -204,17 +204,11 @@ def _submit(todo, spec, options, jobs, scheduler):
             yield p, fit_file(p, spec, options, plugins)
     else:
         from concurrent.futures import as_completed
-        from concurrent.futures.process import BrokenProcessPool
         pool, started = _local_pool(jobs)
-        try:
-            with pool:
-                futures = {pool.submit(fit_file, p, spec, options, plugins): p for p in todo}
-                for future in as_completed(futures):
-                    yield futures[future], future.result()
-        except BrokenProcessPool:
-            if started.value:  # a worker died after starting: not the main module's doing
-                raise
-            raise spawned.unguarded_main("brdf.batch") from None
+        with spawned.main_guarded(started, "brdf.batch"), pool:
+            futures = {pool.submit(fit_file, p, spec, options, plugins): p for p in todo}
+            for future in as_completed(futures):
+                yield futures[future], future.result()
 
 
 def _write_summary(result, outdir):
@@ -270,10 +264,7 @@ def batch(inputs, spec, outdir, *, jobs=None, scheduler=None, force=False, progr
         its top level: spawned workers import the script again, so the call belongs under
         ``if __name__ == "__main__":``.
     """
-    if spawned.starting_a_worker():
-        # the script's top level, run again in a worker as it starts: end this worker quietly
-        # (the parent raises MainGuardError) rather than with multiprocessing's traceback
-        raise SystemExit(1)
+    spawned.stop_if_starting()
     from ..io import atomic_output
     from ..spec import parse
     from . import losses
