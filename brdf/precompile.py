@@ -80,14 +80,19 @@ def _fitting_losses():
     problem.score(np.zeros_like(table.values), problem.terms)
 
 
+def _merl_table():
+    """A constant MERL table: the MERL kernels compile the same for any values."""
+    from .io.merl import SHAPE, MerlTable
+    return MerlTable(np.full((3, *SHAPE), 0.1))
+
+
 def _tables():
     """Measured tables: the MERL grid, scattered interpolation and checks of a table. The MERL
-    table is a constant one, as the renderer's part makes: measuring a model on the whole grid
-    (1.5 million directions) compiled the same kernels and took a second more of NumPy."""
+    table is :func:`_merl_table`'s: measuring a model on the whole grid (1.5 million
+    directions) compiled the same kernels and took a second more of NumPy."""
     import brdf
-    from .io.merl import MerlTable
     wi, wo = _pairs()
-    MerlTable(np.full((3, 90, 90, 180), 0.1)).eval(wi, wo)
+    _merl_table().eval(wi, wo)
     table = brdf.measure(_SPEC, "random:400")
     table.eval(wi, wo)
     brdf.check(table, theta_steps=6, anisotropic_steps=(4, 2))
@@ -96,9 +101,8 @@ def _tables():
 def _render():
     """The path tracer with a parametric and a measured material, and the Cornell box."""
     import brdf
-    from .io.merl import MerlTable
     from .render import builtin, render
-    for material in (brdf.parse(_SPEC), MerlTable(np.full((3, 90, 90, 180), 0.1))):
+    for material in (brdf.parse(_SPEC), _merl_table()):
         render(builtin("sphere", material), spp=1, size=(4, 4), seed=0)
     render(builtin("cornell"), spp=1, size=(4, 4), seed=0)
 
