@@ -281,7 +281,8 @@ def main():
     args = p.parse_args()
     from brdf import render
     desc = bench_render.SCENES["furnace"]
-    scene = bench_render.build_ours(desc, {"dir": tempfile.mkdtemp()})
+    with tempfile.TemporaryDirectory() as tmp:  # the furnace writes no file there
+        scene = bench_render.build_ours(desc, {"dir": tmp})
     try:
         mi = bench_render.setup_llvm()
     except Exception as e:  # Mitsuba is a test extra
