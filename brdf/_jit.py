@@ -891,8 +891,11 @@ def sparse_product(typingctx, a, b):
 
 
 # One line on stderr before a group of kernels first compiles in a process, since that takes
-# a minute and looks hung (brdf.kernel_groups): numba tells of compiles only on a disk-cache
-# miss, so a warm cache runs as before.
+# a minute and looks hung (brdf.kernel_groups), and the process's memory kept for the compiler
+# (brdf._compile_memory): numba tells of compiles only on a disk-cache miss, so a warm cache
+# runs as before.
+from ._compile_memory import manage_compile_memory  # noqa: E402
 from .kernel_groups import announce_first_compiles  # noqa: E402
 
 announce_first_compiles()
+manage_compile_memory()

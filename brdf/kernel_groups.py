@@ -13,8 +13,6 @@ This module imports no kernels, so editing it leaves the cache valid (see :mod:`
 
 from numba.core import event
 
-from ._stack_chunks import keep_freed_chunks
-
 __all__ = ["KERNELS", "COLD_SECONDS", "group_of", "CompileNotice", "announce_first_compiles"]
 
 #: What each group's kernels are called in the notice, and the modules that hold them (a
@@ -56,9 +54,7 @@ class CompileNotice(event.Listener):
     (:func:`brdf.progress.note`, silenced by ``quiet``): ``compiling the model kernels once
     for this machine (up to about 35 s) ...``, the group's :data:`COLD_SECONDS` (a command
     may need only part of the group). A kernel's callees compile within its own compile;
-    they count as its work and print nothing of their own. At the first compile, the frame
-    stack's freed chunks start to be kept for reuse
-    (:func:`brdf._stack_chunks.keep_freed_chunks`).
+    they count as its work and print nothing of their own.
 
     Attributes
     ----------
@@ -75,9 +71,6 @@ class CompileNotice(event.Listener):
         group = group_of(_module_of(compile_event))
         if group is None:
             return
-        if self.compiled == 0:
-            # compiling recurses deeply: keep the frame stack's freed chunks for reuse
-            keep_freed_chunks()
         if self.depth == 0 and group not in self.announced:
             from .progress import note
             self.announced.add(group)

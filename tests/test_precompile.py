@@ -14,7 +14,6 @@ import pytest
 from numba.core.event import Event, EventStatus
 
 import brdf
-from brdf import kernel_groups
 from brdf.kernel_groups import COLD_SECONDS, KERNELS, CompileNotice, group_of
 from brdf.precompile import GROUPS, describe, precompile, processes_used, starting
 from brdf.progress import reporting
@@ -118,20 +117,6 @@ def test_one_notice_per_group_and_none_for_callees(capsys):
         f"(up to about {COLD_SECONDS['models']} s) ..."]
     assert notice.compiled == 6 and notice.announced == {"render", "models"}
     assert notice.depth == 0
-
-
-def test_the_first_compile_of_a_package_kernel_keeps_freed_stack_chunks(monkeypatch):
-    """The frame stack's free list (brdf._stack_chunks) is made at the first compile of one
-    of the package's kernels: not for other code's compiles, and never in a command whose
-    kernels are all cached."""
-    calls = []
-    monkeypatch.setattr(kernel_groups, "keep_freed_chunks", lambda: calls.append(1))
-    notice = CompileNotice()
-    _compiling(notice, "numba.np.arraymath")
-    assert calls == []
-    _compiling(notice, "brdf.models.lambert", "brdf.sampling")
-    _compiling(notice, "brdf.render._integrator")
-    assert calls == [1]
 
 
 def test_quiet_silences_the_notice(capsys):

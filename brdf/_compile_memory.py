@@ -1,31 +1,37 @@
-"""Freed chunks of CPython's frame stack kept for reuse while numba compiles.
+"""How the process's memory is handled while numba compiles this package's kernels.
 
-Since Python 3.11 a thread's Python frames live on a stack of memory chunks of 16 KiB, each
-mapped from the system when a call needs room past the last chunk and unmapped when the first
-frame in it returns (CPython's ``_PyThreadState_PushFrame`` and ``_PyThreadState_PopFrame``,
-through the arena allocator). numba's compiler recurses deeply and often, and its calls cross
-a chunk's start over and over: a cold compile of every kernel of this package made 259,067
-``munmap`` and 259,911 ``mmap`` calls and 404,102 page faults, 3.0-3.4 s of system time in
-60 s (perf, one process). :func:`keep_freed_chunks` puts a free list of up to
-:data:`KEPT` such chunks in front of the interpreter's arena allocator
-(``PyObject_SetArenaAllocator``): a freed 16 KiB block is kept, and the next request of that
-size takes it back; any other size, or a full list, goes to the allocator as before, which
-also frees what it made before the list was there. Measured side by side (every kernel
-compiled in one process on an empty cache, one process per core, two rounds): 58.9 and 58.9 s
-without, 56.7 and 55.8 s with; system time 3.0-3.2 s against 0.8-0.9 s.
+A cold compile of every kernel spent a twentieth of its time on memory housekeeping that the
+compiler's way of working sets off (perf, one process, 58-60 s):
 
-The two functions are a few lines of LLVM IR compiled by llvmlite (numba's own dependency);
-they run with the GIL held, as every call of the arena allocator does, so the list needs no
-lock. Interpreters without a GIL, other than CPython, or before 3.11 are left alone.
-:mod:`brdf.kernel_groups` calls :func:`keep_freed_chunks` at the first compile of a
-package kernel, so a command whose kernels are all cached never makes it.
+- **frame-stack chunks.** Since Python 3.11 a thread's Python frames live on a stack of memory
+  chunks of 16 KiB, each mapped from the system when a call needs room past the last chunk
+  and unmapped when the first frame in it returns (CPython's ``_PyThreadState_PushFrame`` and
+  ``_PyThreadState_PopFrame``, through the arena allocator). numba's compiler recurses deeply
+  and often, and its calls cross a chunk's start over and over: 259,067 ``munmap`` and
+  259,911 ``mmap`` calls and 404,102 page faults, 3.0-3.4 s of system time.
+  :func:`keep_freed_chunks` puts a free list of up to :data:`KEPT` such chunks in front of
+  the interpreter's arena allocator (``PyObject_SetArenaAllocator``): a freed 16 KiB block is
+  kept, and the next request of that size takes it back; any other size, or a full list,
+  goes to the allocator as before, which also frees what it made before the list was there.
+  The two functions are a few lines of LLVM IR compiled by llvmlite (numba's own
+  dependency); they run with the GIL held, as every call of the arena allocator does, so the
+  list needs no lock. Interpreters without a GIL, other than CPython, or before 3.11 are
+  left alone. Side by side (every kernel in one process, empty caches, one process per core):
+  59.6, 59.4 and 59.9 s without, 56.9, 56.0 and 54.2 s with.
+
+:class:`CompileMemory` does this from the first compile of one of the package's kernels
+(``numba:compile`` events, which numba raises only for a kernel not in its disk cache), so a
+command whose kernels are all cached never does it.
 """
 
 import ctypes
 import sys
 import sysconfig
 
-__all__ = ["keep_freed_chunks", "KEPT", "CHUNK"]
+from numba.core import event
+
+__all__ = ["keep_freed_chunks", "kept_chunks", "CompileMemory", "manage_compile_memory",
+           "KEPT", "CHUNK"]
 
 #: The size of CPython's frame-stack chunks (``DATA_STACK_CHUNK_SIZE``, 3.11 on); a frame
 #: larger than a chunk gets a chunk of its own, of a power-of-two multiple, which is left to
@@ -138,3 +144,39 @@ def kept_chunks():
         return 0
     engine = _installed[0]
     return ctypes.c_int64.from_address(engine.get_global_value_address("count")).value
+
+
+def _package_kernel(compile_event):
+    function = getattr(compile_event.data.get("dispatcher"), "py_func", None)
+    return (getattr(function, "__module__", None) or "").startswith("brdf.")
+
+
+class CompileMemory(event.Listener):
+    """Listens to numba's compiles (``numba:compile`` events): at the first one of a package
+    kernel, :func:`keep_freed_chunks`."""
+
+    def __init__(self):
+        self.depth = 0
+
+    def on_start(self, compile_event):
+        if not _package_kernel(compile_event):
+            return
+        if self.depth == 0:
+            keep_freed_chunks()
+        self.depth += 1
+
+    def on_end(self, compile_event):
+        if _package_kernel(compile_event):
+            self.depth -= 1
+
+
+_listener = None
+
+
+def manage_compile_memory():
+    """The process's :class:`CompileMemory`, listening to numba from the first call on."""
+    global _listener
+    if _listener is None:
+        _listener = CompileMemory()
+        event.register("numba:compile", _listener)
+    return _listener

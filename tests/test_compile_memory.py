@@ -1,4 +1,5 @@
-"""The free list of CPython's frame-stack chunks that compiles keep (brdf._stack_chunks)."""
+"""The process's memory while kernels compile (brdf._compile_memory): the frame stack's freed
+chunks kept for reuse, and fewer full collections."""
 
 import json
 import subprocess
@@ -7,14 +8,19 @@ import textwrap
 
 import pytest
 
-from brdf import _stack_chunks
+from types import SimpleNamespace
+
+from numba.core.event import Event, EventStatus
+
+from brdf import _compile_memory
+from brdf._compile_memory import CompileMemory
 
 # A recursion 300 frames deep crosses the start of a 16 KiB chunk twice, each way: without the
 # list, every call maps two chunks and unmaps them on return, and the first touch of each
 # fresh page is a page fault. The same script with and without the list, in fresh processes.
 _SCRIPT = textwrap.dedent("""
     import json, resource, sys
-    from brdf import _stack_chunks as S
+    from brdf import _compile_memory as S
     installed = S.keep_freed_chunks() if sys.argv[1] == "keep" else False
 
     def deep(n):
@@ -40,7 +46,7 @@ def _run(mode):
     return json.loads(done.stdout)
 
 
-@pytest.mark.skipif(not _stack_chunks._supported(),
+@pytest.mark.skipif(not _compile_memory._supported(),
                     reason="no frame-stack chunks to keep on this interpreter")
 def test_freed_chunks_are_kept_and_taken_back():
     plain, kept = _run("plain"), _run("keep")
@@ -49,6 +55,27 @@ def test_freed_chunks_are_kept_and_taken_back():
     # without the list every crossing faults in fresh pages; with it, the same chunks return
     assert plain["faults"] > 20000, plain
     assert kept["faults"] < 2000, kept
-    assert 0 < kept["kept"] <= _stack_chunks.KEPT
-    assert kept["kept_after"] <= _stack_chunks.KEPT
+    assert 0 < kept["kept"] <= _compile_memory.KEPT
+    assert kept["kept_after"] <= _compile_memory.KEPT
 
+
+
+def _event(module, status):
+    function = SimpleNamespace(__module__=module)
+    return Event("numba:compile", status, data={"dispatcher": SimpleNamespace(py_func=function)})
+
+
+def test_a_package_compile_keeps_the_chunks(monkeypatch):
+    """The chunk list is made at the first compile of a package kernel: not for other code's
+    compiles, and never in a command whose kernels are all cached."""
+    calls = []
+    monkeypatch.setattr(_compile_memory, "keep_freed_chunks", lambda: calls.append(1))
+    listener = CompileMemory()
+    listener.notify(_event("numba.np.arraymath", EventStatus.START))
+    listener.notify(_event("numba.np.arraymath", EventStatus.END))
+    assert calls == []
+    listener.notify(_event("brdf.render._integrator", EventStatus.START))
+    listener.notify(_event("brdf.models._kernels", EventStatus.START))
+    listener.notify(_event("brdf.models._kernels", EventStatus.END))
+    listener.notify(_event("brdf.render._integrator", EventStatus.END))
+    assert calls == [1] and listener.depth == 0
