@@ -1,6 +1,7 @@
 """The process's memory while kernels compile (brdf._compile_memory): the frame stack's freed
 chunks kept for reuse, and fewer full collections."""
 
+import gc
 import json
 import subprocess
 import sys
@@ -65,17 +66,24 @@ def _event(module, status):
     return Event("numba:compile", status, data={"dispatcher": SimpleNamespace(py_func=function)})
 
 
-def test_a_package_compile_keeps_the_chunks(monkeypatch):
-    """The chunk list is made at the first compile of a package kernel: not for other code's
-    compiles, and never in a command whose kernels are all cached."""
+def test_a_package_compile_keeps_chunks_and_collects_less_until_it_returns(monkeypatch):
+    """From the first compile of a package kernel on (not other code's, and never in a
+    command whose kernels are cached): the chunk list, and while the compile runs, callees'
+    compiles within it included, the oldest generation's threshold raised; the process's
+    own back when it returns."""
     calls = []
     monkeypatch.setattr(_compile_memory, "keep_freed_chunks", lambda: calls.append(1))
+    monkeypatch.setattr(gc, "get_threshold", lambda: (700, 10, 10))
+    set_to = []
+    monkeypatch.setattr(gc, "set_threshold", lambda *t: set_to.append(t))
     listener = CompileMemory()
     listener.notify(_event("numba.np.arraymath", EventStatus.START))
     listener.notify(_event("numba.np.arraymath", EventStatus.END))
-    assert calls == []
+    assert calls == [] and set_to == []
     listener.notify(_event("brdf.render._integrator", EventStatus.START))
     listener.notify(_event("brdf.models._kernels", EventStatus.START))
     listener.notify(_event("brdf.models._kernels", EventStatus.END))
+    assert set_to == [(700, 10, _compile_memory.FULL_AFTER)]
     listener.notify(_event("brdf.render._integrator", EventStatus.END))
+    assert set_to[-1] == (700, 10, 10) and len(set_to) == 2
     assert calls == [1] and listener.depth == 0
