@@ -38,6 +38,8 @@ import sysconfig
 
 from numba.core import event
 
+from .kernel_groups import group_of, listening, module_of
+
 __all__ = ["keep_freed_chunks", "kept_chunks", "CompileMemory", "manage_compile_memory",
            "KEPT", "CHUNK", "FULL_AFTER"]
 
@@ -159,8 +161,7 @@ def kept_chunks():
 
 
 def _package_kernel(compile_event):
-    function = getattr(compile_event.data.get("dispatcher"), "py_func", None)
-    return (getattr(function, "__module__", None) or "").startswith("brdf.")
+    return group_of(module_of(compile_event)) is not None
 
 
 class CompileMemory(event.Listener):
@@ -189,13 +190,6 @@ class CompileMemory(event.Listener):
             gc.set_threshold(*self.saved)
 
 
-_listener = None
-
-
 def manage_compile_memory():
     """The process's :class:`CompileMemory`, listening to numba from the first call on."""
-    global _listener
-    if _listener is None:
-        _listener = CompileMemory()
-        event.register("numba:compile", _listener)
-    return _listener
+    return listening(CompileMemory)

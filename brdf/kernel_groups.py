@@ -13,7 +13,8 @@ This module imports no kernels, so editing it leaves the cache valid (see :mod:`
 
 from numba.core import event
 
-__all__ = ["KERNELS", "COLD_SECONDS", "group_of", "CompileNotice", "announce_first_compiles"]
+__all__ = ["KERNELS", "COLD_SECONDS", "group_of", "module_of", "CompileNotice", "listening",
+           "announce_first_compiles"]
 
 #: What each group's kernels are called in the notice, and the modules that hold them (a
 #: module name, or a package's prefix ending in a dot).
@@ -41,7 +42,8 @@ def group_of(module):
     return None
 
 
-def _module_of(compile_event):
+def module_of(compile_event):
+    """The module of the function a ``numba:compile`` event is about ("" if none)."""
     function = getattr(compile_event.data.get("dispatcher"), "py_func", None)
     return getattr(function, "__module__", None) or ""
 
@@ -68,7 +70,7 @@ class CompileNotice(event.Listener):
         self.compiled, self.announced, self.depth = 0, set(), 0
 
     def on_start(self, compile_event):
-        group = group_of(_module_of(compile_event))
+        group = group_of(module_of(compile_event))
         if group is None:
             return
         if self.depth == 0 and group not in self.announced:
@@ -80,17 +82,22 @@ class CompileNotice(event.Listener):
         self.compiled += 1
 
     def on_end(self, compile_event):
-        if group_of(_module_of(compile_event)) is not None:
+        if group_of(module_of(compile_event)) is not None:
             self.depth -= 1
 
 
-_notice = None
+_listeners = {}
+
+
+def listening(kind):
+    """The process's one listener of class ``kind`` to numba's compiles (``numba:compile``
+    events), made and registered at the first call."""
+    if kind not in _listeners:
+        _listeners[kind] = kind()
+        event.register("numba:compile", _listeners[kind])
+    return _listeners[kind]
 
 
 def announce_first_compiles():
     """The process's :class:`CompileNotice`, listening to numba from the first call on."""
-    global _notice
-    if _notice is None:
-        _notice = CompileNotice()
-        event.register("numba:compile", _notice)
-    return _notice
+    return listening(CompileNotice)
