@@ -109,8 +109,8 @@ class _ArenaAllocator(ctypes.Structure):
                 ("free", ctypes.c_void_p)]
 
 
-#: The installed list's engine, module and allocators (kept alive), or False where it cannot
-#: be installed; None before the first call.
+#: The installed list's engine (never released), module and allocators, or False where it
+#: cannot be installed; None before the first call.
 _installed = None
 
 
@@ -135,6 +135,9 @@ def _install():
     after = _ArenaAllocator(None, engine.get_function_address("brdf_chunk_alloc"),
                             engine.get_function_address("brdf_chunk_free"))
     ctypes.pythonapi.PyObject_SetArenaAllocator(ctypes.byref(after))
+    # the interpreter frees chunks through these functions until the process ends, after the
+    # module's globals are gone: the engine that holds their code is never released
+    ctypes.pythonapi.Py_IncRef(ctypes.py_object(engine))
     return engine, module, machine, before, after
 
 
