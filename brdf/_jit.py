@@ -891,9 +891,9 @@ def sparse_product(typingctx, a, b):
 
 
 # One line on stderr before a group of kernels first compiles in a process, since that takes
-# a minute and looks hung (brdf.kernel_groups), and the process's memory kept for the compiler
-# (brdf._compile_memory): numba tells of compiles only on a disk-cache miss, so a warm cache
-# runs as before.
+# a minute and looks hung (brdf.kernel_groups), and the memory housekeeping that compiles set
+# off made cheaper (brdf._compile_memory): numba tells of compiles only on a disk-cache miss,
+# so a warm cache runs as before.
 from ._compile_memory import manage_compile_memory  # noqa: E402
 from .kernel_groups import announce_first_compiles  # noqa: E402
 
