@@ -6,13 +6,13 @@ import json
 import subprocess
 import sys
 import textwrap
-from types import SimpleNamespace
 
 import pytest
-from numba.core.event import Event, EventStatus
+from numba.core.event import EventStatus
 
 from brdf import _compile_memory
 from brdf._compile_memory import CompileMemory
+from test_precompile import compile_event
 
 # A recursion 300 frames deep crosses the start of a 16 KiB chunk twice, each way: without the
 # list, every call maps two chunks and unmaps them on return, and the first touch of each
@@ -66,11 +66,6 @@ def test_freed_chunks_are_kept_and_taken_back():
     assert kept["kept_after"] == kept["kept"]
 
 
-def _event(module, status):
-    function = SimpleNamespace(__module__=module)
-    return Event("numba:compile", status, data={"dispatcher": SimpleNamespace(py_func=function)})
-
-
 def test_a_package_compile_keeps_chunks_and_collects_less_until_it_returns(monkeypatch):
     """From the first compile of a package kernel on (not other code's, and never in a
     command whose kernels are cached): the chunk list, and while the compile runs, callees'
@@ -82,13 +77,13 @@ def test_a_package_compile_keeps_chunks_and_collects_less_until_it_returns(monke
     set_to = []
     monkeypatch.setattr(gc, "set_threshold", lambda *t: set_to.append(t))
     listener = CompileMemory()
-    listener.notify(_event("numba.np.arraymath", EventStatus.START))
-    listener.notify(_event("numba.np.arraymath", EventStatus.END))
+    listener.notify(compile_event("numba.np.arraymath", EventStatus.START))
+    listener.notify(compile_event("numba.np.arraymath", EventStatus.END))
     assert calls == [] and set_to == []
-    listener.notify(_event("brdf.render._integrator", EventStatus.START))
-    listener.notify(_event("brdf.models._kernels", EventStatus.START))
-    listener.notify(_event("brdf.models._kernels", EventStatus.END))
+    listener.notify(compile_event("brdf.render._integrator", EventStatus.START))
+    listener.notify(compile_event("brdf.models._kernels", EventStatus.START))
+    listener.notify(compile_event("brdf.models._kernels", EventStatus.END))
     assert set_to == [(700, 10, _compile_memory.FULL_AFTER)]
-    listener.notify(_event("brdf.render._integrator", EventStatus.END))
+    listener.notify(compile_event("brdf.render._integrator", EventStatus.END))
     assert set_to[-1] == (700, 10, 10) and len(set_to) == 2
     assert calls == [1] and listener.depth == 0

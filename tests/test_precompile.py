@@ -86,10 +86,14 @@ def test_every_kernel_module_belongs_to_a_group():
     assert group_of("brdf.samplingx") is None and group_of("numpy.linalg") is None
 
 
-def _compile(notice, module, status):
+def compile_event(module, status):
+    """numba's ``numba:compile`` event (START or END) of a kernel of ``module``."""
     function = SimpleNamespace(__module__=module)
-    notice.notify(Event("numba:compile", status,
-                        data={"dispatcher": SimpleNamespace(py_func=function)}))
+    return Event("numba:compile", status, data={"dispatcher": SimpleNamespace(py_func=function)})
+
+
+def _compile(notice, module, status):
+    notice.notify(compile_event(module, status))
 
 
 def _compiling(notice, *modules):
