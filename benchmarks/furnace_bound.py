@@ -41,6 +41,7 @@ from numba import get_num_threads, njit, prange
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import bench_render  # noqa: E402  (the scene, both renderers' builders)
+from brdf.sampling import sincos_turn  # noqa: E402  (the renderer's azimuths)
 
 #: the renderer's fast-math flags (brdf._jit.FASTMATH): no assumption about inf or NaN
 FM = {"nsz", "arcp", "contract", "afn", "reassoc"}
@@ -64,22 +65,6 @@ def _hash(z):
 def _number(state, k):
     """The k-th number in [0, 1) of the stream that starts at ``state`` (53 bits)."""
     return float(_hash(state + np.uint64(k) * _GOLDEN) >> np.uint64(11)) * 2.0 ** -53
-
-
-@njit(fastmath=FM, error_model="numpy", inline="always")
-def _turn(u):
-    """cos and sin of 2 pi u without a call: the Taylor series of cos to degree 10 on a
-    quarter turn (error under 3e-7), reflected, and sin from cos."""
-    x = 2.0 * math.pi * u - math.pi
-    a = abs(x)
-    far = a > 0.5 * math.pi
-    y = math.pi - a if far else a
-    y2 = y * y
-    c = 1.0 + y2 * (-1 / 2 + y2 * (1 / 24 + y2 * (-1 / 720 + y2 * (1 / 40320
-                                                                   - y2 / 3628800))))
-    c = -c if far else c
-    s = math.sqrt(max(0.0, 1.0 - c * c))
-    return -c, (s if x < 0.0 else -s)  # cos and sin of x + pi
 
 
 @njit(fastmath=FM, error_model="numpy", inline="always")
@@ -148,7 +133,7 @@ def _scatter(a2, dx, dy, dz, t, u1, u2, u3, u4):
     # next event: a uniform direction (the constant environment's density)
     lz = 1.0 - 2.0 * u1
     r = math.sqrt(max(0.0, 1.0 - lz * lz))
-    c, s = _turn(u2)
+    s, c = sincos_turn(u2)
     lx, ly = r * c, r * s
     f_l, p_l = _ggx(a2, ox, oy, oz, lx * tx + ly * ty + lz * tz,
                     lx * bx + ly * by + lz * bz, lx * nx + ly * ny + lz * nz)
@@ -157,7 +142,7 @@ def _scatter(a2, dx, dy, dz, t, u1, u2, u3, u4):
     # a BSDF sample: m from D cos(m) (Walter et al. 2007, eqs. 35-36), i reflected about m
     cm = 1.0 / math.sqrt(1.0 + a2 * u3 / (1.0 - u3))
     sm = math.sqrt(max(0.0, 1.0 - cm * cm))
-    c, s = _turn(u4)
+    s, c = sincos_turn(u4)
     mx, my, mz = sm * c, sm * s, cm
     om = ox * mx + oy * my + oz * mz
     ix, iy, iz = 2.0 * om * mx - ox, 2.0 * om * my - oy, 2.0 * om * mz - oz
