@@ -1,7 +1,8 @@
 """Path-tracing throughput on a suite of scenes against Mitsuba 3, in the same run.
 
 Run: ``python benchmarks/bench_render.py [--scene NAME ... | --all] [--size 256] [--spp 64]
-[--depth 8] [--repeats 5] [--layers]`` (without ``--scene`` or ``--all``: the Cornell box)
+[--depth 8] [--repeats 5] [--layers] [--stages]`` (without ``--scene`` or ``--all``: the
+Cornell box)
 
 Each scene is written once, as a neutral description (:data:`SCENES`: camera, shapes with a
 material spec, lights, environment), and built from it for both renderers at the same size,
@@ -35,7 +36,9 @@ Prints per scene samples (paths) per second of each, the best of ``--repeats`` r
 in turns (ours, theirs, ours, ...), the ratio of the bests, the median and range of the
 turn-by-turn ratios, and the relative difference of the mean images (goal: within 0.2 %):
 of the first render's, and its mean and standard error over every turn (each renders a new
-seed in both); then a table of all the scenes.
+seed in both); then a table of all the scenes. With ``--stages``, one more render of ours per
+scene times the path tracer's stages in its kernels (``render(..., stats=True)``, x86-64),
+and a last table gives each stage's CPU nanoseconds per sample, scene by scene.
 """
 
 import argparse
@@ -351,6 +354,12 @@ def bench(name, args, mi, depot):
           "(mean +- standard error, the channel furthest off)"
           + ("  (goal < 0.2 %)" if same else "  (not the same material or light: not compared)"),
           flush=True)
+    if args.stages:
+        fig["stats"] = render.render(scene, spp=args.spp, size=args.size, seed=0,
+                                     max_depth=args.depth, layers=args.layers, progress=False,
+                                     stats=True).stats
+        print(f"[{name}] stages of one more render (CPU seconds of all threads):")
+        print("\n".join("    " + line for line in fig["stats"].table().splitlines()), flush=True)
     return fig
 
 
@@ -365,6 +374,8 @@ def main():
     ap.add_argument("--scene", action="append", choices=ALL,
                     help="a scene to time (repeatable; default: cornell)")
     ap.add_argument("--all", action="store_true", help="time every scene")
+    ap.add_argument("--stages", action="store_true",
+                    help="also time our stages (render(..., stats=True)) in one more render")
     args = ap.parse_args()
     names = ALL if args.all else (args.scene or ["cornell"])
     mi = setup_llvm()
@@ -384,6 +395,18 @@ def main():
         print(f"{f['name']:10s} {f['ours'] / 1e6:9.2f} {f['theirs'] / 1e6:12.2f} "
               f"{f['best']:9.2f}x {f['median']:6.2f}x {f['low']:5.2f}-{f['high']:4.2f}x "
               f"{diff:>28s}")
+    if args.stages:
+        n = args.size * args.size * args.spp
+        stages = list(figures[0]["stats"].seconds)
+        print(f"\nCPU ns per sample, stage by stage (all threads; mitsuba's wall ns per sample "
+              f"times {os.cpu_count()} cores for scale)")
+        print(f"{'scene':10s} " + " ".join(f"{s[:11]:>11s}" for s in stages)
+              + f" {'all':>7s} {'mitsuba':>8s}")
+        for f in figures:
+            st = f["stats"]
+            print(f"{f['name']:10s} " + " ".join(f"{1e9 * st.seconds[s] / n:11.1f}"
+                                                 for s in stages)
+                  + f" {1e9 * st.thread_seconds / n:7.1f} {1e9 * os.cpu_count() / f['theirs']:8.1f}")
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import contextlib
 import functools
 import inspect
 import itertools
+import platform
 import threading
 
 import llvmlite.binding as ll
@@ -872,6 +873,24 @@ def prefetch(typingctx, array, index):
         return context.get_dummy_value()
 
     return types.none(array, index), codegen
+
+
+#: Whether :func:`ticks` counts time here: x86-64's time-stamp counter, which ticks at a
+#: constant rate whatever the core's clock; other CPUs' cycle counters may be closed to user
+#: code (AArch64's traps), so nothing reads one there.
+HAS_TICKS = platform.machine().lower() in ("x86_64", "amd64")
+
+
+@intrinsic
+def ticks(typingctx):
+    """The time-stamp counter (``llvm.readcyclecounter``: ``rdtsc``), for timing the stages of
+    a kernel in its own code; only where :data:`HAS_TICKS`."""
+    def codegen(context, builder, signature, args):
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.IntType(64), []),
+                                            "llvm.readcyclecounter")
+        return builder.call(fn, [])
+
+    return types.int64(), codegen
 
 
 @intrinsic

@@ -72,6 +72,9 @@ def add_parsers(sub, subcommand, arguments, subject_help, data_help):
     p.add_argument("--no-layers", dest="layers", action="store_false",
                    help="write RGB only, without the albedo, normal and variance layers "
                         "(renders a few per cent faster)")
+    p.add_argument("--stats", action="store_true",
+                   help="also print where the render's time went, stage by stage of the "
+                        "path tracer (x86-64 CPUs)")
     _render_options(p, arguments)
 
     p = subcommand(sub, "validate", validate, "render measured data and its fit side by side",
@@ -103,7 +106,7 @@ def render(args, out):
     png = args.output.lower().endswith(".png")
     result = R.render(_scene(args.scene, load_subject(args.material)), spp=args.spp, size=args.size,
                       seed=args.seed, max_depth=args.max_depth, strategy=args.strategy,
-                      threads=args.threads,
+                      threads=args.threads, stats=args.stats,
                       layers=args.layers and not png)  # a PNG has no layers to write
     if png:
         result.preview(args.output, args.exposure, force=args.force)
@@ -116,12 +119,19 @@ def render(args, out):
              "compile_seconds": result.compile_seconds,
              "samples_per_second": result.samples_per_second,
              "mean": [float(x) for x in result.image.mean(axis=(0, 1))]}
+    if result.stats is not None:
+        st = result.stats
+        stats["stages"] = {"cpu_seconds": st.seconds, "thread_seconds": st.thread_seconds,
+                           "samples": st.samples, "steps": st.steps, "shaded": st.shaded,
+                           "shadow_rays": st.shadow_rays}
     if args.json:
         out.json(stats)
     else:
         out.text(f"{args.output}: {args.size[0]} x {args.size[1]}, {args.spp} spp, "
                  f"{result.seconds:.2f} s ({result.samples_per_second / 1e6:.2f} M samples/s), "
                  f"mean RGB {', '.join(f'{x:.4g}' for x in stats['mean'])}")
+        if result.stats is not None:
+            out.text(result.stats.table())
     return EXIT_OK
 
 

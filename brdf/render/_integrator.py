@@ -41,12 +41,13 @@ sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3 (``--al
 """
 
 import math
+import time
 from collections import namedtuple
 
 import numpy as np
 
 from .._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_threads,
-                    inline_kernel, kernel, nogil_kernel)
+                    inline_kernel, kernel, nogil_kernel, ticks)
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
@@ -281,6 +282,17 @@ Sums = namedtuple("Sums", "acc acc2 aov")
 #: mode, carried along the path), and both are unbiased for the image and its derivatives at
 #: theta. Russian roulette would end paths on the evaluated throughput: the caller turns it off.
 Gradient = namedtuple("Gradient", "slots acc")
+#: The stages of :func:`trace_tiles` that a ``clock`` times (:func:`render_pass`), in the
+#: order of its rows: paths moved on, ended and started (:func:`_advance`), their rays traced,
+#: the vertices' numbers drawn, the vertices (:func:`_vertices`), the shadow rays traced and
+#: the shading (:func:`_shade`). :class:`.stats.RenderStats` names them.
+STAGES = ("paths", "rays", "numbers", "vertices", "shadow rays", "shading")
+#: ``clock``'s rows after the stages': time-stamp ticks in :func:`trace_tiles` in all, packet
+#: steps, vertices shaded, shadow rays traced, and the threads' nanoseconds in it (measured
+#: around each call, to turn ticks into seconds)
+CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS, CLOCK_NS = range(len(STAGES),
+                                                                         len(STAGES) + 5)
+CLOCK_ROWS = CLOCK_NS + 1
 
 
 @inline_kernel
@@ -772,6 +784,46 @@ def _shade_target(opts, mats, slots, p):
 
 
 @allocating_kernel(linked=AS_LOWERED)
+def _clock_space(clock):
+    """A thread's counts of ``clock``'s rows (zeroed), or None without a clock."""
+    if clock is None:
+        return None
+    return np.zeros(CLOCK_ROWS, np.int64)
+
+
+@inline_kernel
+def _lap(clock, spent, row, since):
+    """With a clock, the time-stamp counter now, after adding the ticks since ``since`` to row
+    ``row`` of ``spent`` (a stage's; -1: none); without, 0. Without a clock numba leaves the
+    timing out of the compiled kernel."""
+    if clock is None:
+        return 0
+    now = ticks()
+    if row >= 0:
+        spent[row] += now - since
+    return now
+
+
+@inline_kernel
+def _count(clock, spent, shading, shadows):
+    """With a clock, count a packet step, its vertices shaded and its shadow rays."""
+    if clock is not None:
+        spent[CLOCK_STEPS] += 1
+        spent[CLOCK_SHADED] += shading
+        spent[CLOCK_SHADOWS] += shadows
+
+
+@inline_kernel
+def _clock_in(clock, spent, began):
+    """With a clock, a thread's counts added to it (atomically: the threads share it), its
+    ticks since ``began`` as the total."""
+    if clock is not None:
+        _lap(clock, spent, CLOCK_TOTAL, began)
+        for r in range(CLOCK_NS):
+            fetch_add(clock[r:], spent[r])
+
+
+@allocating_kernel(linked=AS_LOWERED)
 def _packet_space(nparams, nlobes, nd):
     """A packet's work space, a :data:`Packet` for ``nd`` derivative images (zeroed: idle
     lanes' leftovers steer the packet's traversal, so they must not depend on what the memory
@@ -787,17 +839,20 @@ def _packet_space(nparams, nlobes, nd):
 
 @nogil_kernel
 def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
-                nlobes):
+                nlobes, clock):
     """Trace tiles of opts[TILE]^2 pixels, each taken from the queue the threads share
     (``queue[0]``, the next tile's number, row-major over the image) as the last is done, until
     none is left: samples s0 .. s1 - 1 of each pixel into the running ``sums`` (see
     :func:`render_pass`), for each the radiance along its camera ray, and with opts[LAYERS] the
     first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal; the
-    derivative images into ``grad``. Each tile gets a new packet work space
-    (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters and
-    ``nlobes`` lobes), so that nothing a thread traced before steers it. The tile's loop is
-    written here rather than in a kernel of its own: called, it rendered the white furnace
+    derivative images into ``grad``; with a ``clock`` (else None), the ticks of each of the
+    :data:`STAGES` and the counts after them added to its rows. Each tile gets a new packet
+    work space (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters
+    and ``nlobes`` lobes), so that nothing a thread traced before steers it. The tile's loop
+    is written here rather than in a kernel of its own: called, it rendered the white furnace
     about 15 % slower (one thread); inlined, its own compile was wasted (11 s of CPU)."""
+    spent = _clock_space(clock)
+    began = _lap(clock, spent, -1, 0)
     w, h, size = opts[W], opts[H], opts[TILE]
     nd = 0
     if grad is not None:
@@ -807,6 +862,7 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
     while True:
         k = fetch_add(queue, 1)
         if k >= ntiles:
+            _clock_in(clock, spent, began)
             return
         x0, y0 = (k % tx_n) * size, (k // tx_n) * size
         tile = (x0, y0, min(x0 + size, w), min(y0 + size, h))
@@ -815,43 +871,59 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
         fl, il, sh = p.fl, p.il, p.sh
         start = 0
         while True:
+            t = _lap(clock, spent, -1, 0)
             start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
+            t = _lap(clock, spent, 0, t)
             if busy == 0:
                 break
             trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False,
                          PACKET)
+            t = _lap(clock, spent, 1, t)
             _draw(fl, p.state)
+            t = _lap(clock, spent, 2, t)
             shading, shadows = _vertices(opts, geo, mats, lights, p)
             if grad is not None:
                 _emitted(p)
+            t = _lap(clock, spent, 3, t)
             if shadows > 0:
                 # whole SIMD registers of lanes (eight numbers: AVX-512)
                 trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH],
                              il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
+            t = _lap(clock, spent, 4, t)
             if shading > 0:
                 _shade(opts, mats, p)
                 if grad is not None:
                     _shade_target(opts, mats, grad.slots, p)
+            _lap(clock, spent, 5, t)
+            _count(clock, spent, shading, shadows)
 
 
-def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad):
+def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=None):
     """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
     ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
     (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
     its own: numba prunes the derivatives' passes from that compilation, which cost a third
-    more of the renderer's compile time). opts[THREADS] threads (:func:`brdf._jit.in_threads`)
-    run :func:`trace_tiles`, taking tiles from one queue; a tile's pixels are its own, so the
-    sums do not depend on who traced it. Each thread takes the next tile as it finishes one:
-    equal shares would wait on the slower core of a shared host, which can run 5-18 % slower
-    than the other for seconds at a time (measured per thread on the Cornell box)."""
+    more of the renderer's compile time); with a ``clock`` (int64, CLOCK_ROWS; only where
+    :data:`brdf._jit.HAS_TICKS`), the stages' ticks, the counts and the threads' nanoseconds
+    added to it (None, the default, is again a type of its own, without the timing).
+    opts[THREADS] threads (:func:`brdf._jit.in_threads`) run :func:`trace_tiles`, taking
+    tiles from one queue; a tile's pixels are its own, so the sums do not depend on who traced
+    it. Each thread takes the next tile as it finishes one: equal shares would wait on the
+    slower core of a shared host, which can run 5-18 % slower than the other for seconds at a
+    time (measured per thread on the Cornell box)."""
     tile = int(opts[TILE])
     ntiles = -(-int(opts[W]) // tile) * -(-int(opts[H]) // tile)
     nparams = max(mats.params.shape[0], 1)
     nlobes = int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1))
     queue = np.zeros(1, np.int64)
+    spans = []
 
     def work():
+        t = time.perf_counter_ns()
         trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
-                    nlobes)
+                    nlobes, clock)
+        spans.append(time.perf_counter_ns() - t)
 
     in_threads(max(1, min(int(opts[THREADS]), ntiles)), work)
+    if clock is not None:
+        clock[CLOCK_NS] += sum(spans)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import brdf
+import brdf._jit
 from brdf.render.image import read_image
 from brdf.render.validate import OUTPUTS
 from brdf_cli.main import main
@@ -60,6 +61,28 @@ def test_render_json_and_png_output(capsys, tmp_path):
     assert out_png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.skipif(not brdf._jit.HAS_TICKS, reason="x86-64 time-stamp counter")
+def test_render_stats_table_and_json(capsys, tmp_path):
+    """``--stats`` prints the stages' table after the summary line, and under ``--json`` their
+    CPU seconds and counts; the image is the one written without it."""
+    plain, timed = tmp_path / "plain.exr", tmp_path / "timed.exr"
+    assert run(capsys, "render", "lambert", "-o", plain, "--scene", "plane-point", *SMALL)[0] == 0
+    status, out, err = run(capsys, "render", "lambert", "-o", timed, "--scene", "plane-point",
+                           "--stats", *SMALL)
+    assert status == 0, err
+    lines = out.splitlines()
+    assert str(timed) in lines[0] and lines[1].split()[0] == "stage"
+    assert [line.split()[0] for line in lines[2:]] == ["paths", "rays", "numbers", "vertices",
+                                                      "shadow", "shading", "other", "all"]
+    np.testing.assert_array_equal(read_image(timed), read_image(plain))
+    status, out, _ = run(capsys, "render", "lambert", "-o", timed, "--scene", "plane-point",
+                         "--stats", "--json", "--force", *SMALL)
+    stages = json.loads(out)["stages"]
+    assert stages["samples"] == 8 * 6 * 2 and stages["shaded"] > 0
+    assert set(stages["cpu_seconds"]) == {"paths", "rays", "numbers", "vertices", "shadow rays",
+                                          "shading", "other"}
+
+
 def test_render_no_layers_writes_rgb_only(capsys, tmp_path):
     import OpenEXR
     full, bare = tmp_path / "full.exr", tmp_path / "bare.exr"
@@ -93,6 +116,15 @@ def test_bad_input_is_one_line_exit_2(capsys, tmp_path, argv, fragments):
     status, _, err = run(capsys, *argv)
     assert status == 2
     assert_one_error_line(err, *fragments)
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test_render_stats_without_a_time_stamp_counter_is_one_line(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(brdf._jit, "HAS_TICKS", False)
+    status, _, err = run(capsys, "render", "lambert", "-o", tmp_path / "x.exr", "--stats",
+                         *SMALL)
+    assert status == 2
+    assert_one_error_line(err, "time-stamp counter")
     assert not (tmp_path / "x.exr").exists()
 
 

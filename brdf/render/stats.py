@@ -1,0 +1,79 @@
+"""Where a render's time goes: the path tracer's stages, timed in its own kernels
+(:func:`brdf.render.render` with ``stats=True``).
+
+The kernel advances a packet of paths a vertex at a time through named stages (pbrt-v4's
+wavefront work items are the model): each stage's time-stamp ticks are summed per thread and
+turned into seconds with the threads' own wall time in the kernel, measured in the same run.
+"""
+
+from dataclasses import dataclass
+
+#: What each stage of :func:`brdf.render._integrator.trace_tiles` does, by its name.
+STAGE_WORK = {
+    "paths": "paths bounced, ended into their pixels, started (camera rays)",
+    "rays": "path rays traced through the scene",
+    "numbers": "each vertex's uniform numbers drawn",
+    "vertices": "emission seen, frames, light samples, escaped rays' environment",
+    "shadow rays": "shadow rays traced",
+    "shading": "BSDFs sampled and evaluated",
+    "other": "tiles handed out and set up, work space, timing",
+}
+
+
+@dataclass(frozen=True)
+class RenderStats:
+    """CPU seconds of each stage of the path tracer (summed over its threads) and what the
+    stages did, for one render.
+
+    Attributes
+    ----------
+    seconds : dict
+        Stage name (:data:`STAGE_WORK`, in order) to CPU seconds; ``other`` is the rest of the
+        threads' time in the kernel.
+    thread_seconds : float
+        The kernel's wall time summed over its threads (the stages' sum).
+    samples : int
+        Paths traced (pixels times samples per pixel).
+    steps : int
+        Packet steps: each moves every path of a packet on by one vertex.
+    shaded : int
+        Vertices shaded (a BSDF sample drawn).
+    shadow_rays : int
+        Shadow rays traced.
+    """
+
+    seconds: dict
+    thread_seconds: float
+    samples: int
+    steps: int
+    shaded: int
+    shadow_rays: int
+
+    def table(self):
+        """A text table: each stage's CPU seconds, share and nanoseconds per sample."""
+        n = max(self.samples, 1)
+        total = self.thread_seconds if self.thread_seconds > 0 else 1.0
+        lines = [f"{'stage':<12} {'CPU s':>8} {'share':>6} {'ns/sample':>10}  what"]
+        for name, sec in self.seconds.items():
+            lines.append(f"{name:<12} {sec:8.3f} {100 * sec / total:5.1f}% {1e9 * sec / n:10.1f}"
+                         f"  {STAGE_WORK[name]}")
+        lines.append(f"{'all':<12} {self.thread_seconds:8.3f} {100.0:5.1f}% "
+                     f"{1e9 * self.thread_seconds / n:10.1f}  {self.samples} samples, "
+                     f"{self.shaded} vertices shaded, {self.shadow_rays} shadow rays, "
+                     f"{self.steps} packet steps")
+        return "\n".join(lines)
+
+    def __str__(self):
+        return self.table()
+
+
+def from_clock(clock, samples):
+    """The :class:`RenderStats` of a render's ``clock`` (the rows that
+    :func:`brdf.render._integrator.render_pass` adds to) for ``samples`` paths."""
+    from . import _integrator as X
+    thread_seconds = clock[X.CLOCK_NS] * 1e-9
+    per_tick = thread_seconds / clock[X.CLOCK_TOTAL] if clock[X.CLOCK_TOTAL] > 0 else 0.0
+    seconds = {name: float(clock[k]) * per_tick for k, name in enumerate(X.STAGES)}
+    seconds["other"] = max(thread_seconds - sum(seconds.values()), 0.0)
+    return RenderStats(seconds, thread_seconds, int(samples), int(clock[X.CLOCK_STEPS]),
+                       int(clock[X.CLOCK_SHADED]), int(clock[X.CLOCK_SHADOWS]))
