@@ -38,7 +38,7 @@ import sysconfig
 
 from numba.core import event
 
-from .kernel_groups import group_of, listening, module_of
+from .kernel_groups import compiling_group, listening
 
 __all__ = ["keep_freed_chunks", "kept_chunks", "CompileMemory", "manage_compile_memory",
            "KEPT", "CHUNK", "FULL_AFTER"]
@@ -163,10 +163,6 @@ def kept_chunks():
     return ctypes.c_int64.from_address(engine.get_global_value_address("count")).value
 
 
-def _package_kernel(compile_event):
-    return group_of(module_of(compile_event)) is not None
-
-
 class CompileMemory(event.Listener):
     """Listens to numba's compiles (``numba:compile`` events): at the first one of a package
     kernel, :func:`keep_freed_chunks`; while one runs (callees' compiles within it), the
@@ -177,7 +173,7 @@ class CompileMemory(event.Listener):
         self.depth, self.saved = 0, None
 
     def on_start(self, compile_event):
-        if not _package_kernel(compile_event):
+        if compiling_group(compile_event) is None:
             return
         if self.depth == 0:
             keep_freed_chunks()
@@ -186,7 +182,7 @@ class CompileMemory(event.Listener):
         self.depth += 1
 
     def on_end(self, compile_event):
-        if not _package_kernel(compile_event):
+        if compiling_group(compile_event) is None:
             return
         self.depth -= 1
         if self.depth == 0 and self.saved is not None:

@@ -13,7 +13,7 @@ This module imports no kernels, so editing it leaves the cache valid (see :mod:`
 
 from numba.core import event
 
-__all__ = ["KERNELS", "COLD_SECONDS", "group_of", "module_of", "CompileNotice", "listening",
+__all__ = ["KERNELS", "COLD_SECONDS", "group_of", "compiling_group", "CompileNotice", "listening",
            "announce_first_compiles"]
 
 #: What each group's kernels are called in the notice, and the modules that hold them (a
@@ -42,10 +42,11 @@ def group_of(module):
     return None
 
 
-def module_of(compile_event):
-    """The module of the function a ``numba:compile`` event is about ("" if none)."""
+def compiling_group(compile_event):
+    """The group of the kernel a ``numba:compile`` event is about (:func:`group_of` of its
+    function's module), or None for a function that is not one of the package's kernels."""
     function = getattr(compile_event.data.get("dispatcher"), "py_func", None)
-    return getattr(function, "__module__", None) or ""
+    return group_of(getattr(function, "__module__", None) or "")
 
 
 class CompileNotice(event.Listener):
@@ -70,7 +71,7 @@ class CompileNotice(event.Listener):
         self.compiled, self.announced, self.depth = 0, set(), 0
 
     def on_start(self, compile_event):
-        group = group_of(module_of(compile_event))
+        group = compiling_group(compile_event)
         if group is None:
             return
         if self.depth == 0 and group not in self.announced:
@@ -82,7 +83,7 @@ class CompileNotice(event.Listener):
         self.compiled += 1
 
     def on_end(self, compile_event):
-        if group_of(module_of(compile_event)) is not None:
+        if compiling_group(compile_event) is not None:
             self.depth -= 1
 
 
