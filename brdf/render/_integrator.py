@@ -56,6 +56,7 @@ from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
                                stack_array, with_last_axis)
 from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
+from .stats import STAGES
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
@@ -283,14 +284,12 @@ Sums = namedtuple("Sums", "acc acc2 aov")
 #: mode, carried along the path), and both are unbiased for the image and its derivatives at
 #: theta. Russian roulette would end paths on the evaluated throughput: the caller turns it off.
 Gradient = namedtuple("Gradient", "slots acc")
-#: The stages of :func:`trace_tiles` that a ``clock`` times (:func:`render_pass`), in the
-#: order of its rows: paths moved on, ended and started (:func:`_advance`), their rays traced,
-#: the vertices' numbers drawn, the vertices (:func:`_vertices`), the shadow rays traced and
-#: the shading (:func:`_shade`). :class:`.stats.RenderStats` names them.
-STAGES = ("paths", "rays", "numbers", "vertices", "shadow rays", "shading")
-#: ``clock``'s rows after the stages': time-stamp ticks in :func:`trace_tiles` in all, packet
-#: steps, vertices shaded, shadow rays traced, and the threads' nanoseconds in it (measured
-#: around each call, to turn ticks into seconds)
+#: ``clock``'s rows (:func:`render_pass`): the time-stamp ticks of each stage of
+#: :func:`trace_tiles` in the order of :data:`.stats.STAGES` (paths moved on, ended and started
+#: by :func:`_advance`; their rays traced; the vertices' numbers drawn; the vertices of
+#: :func:`_vertices`; the shadow rays traced; the shading of :func:`_shade`), then the ticks in
+#: :func:`trace_tiles` in all, packet steps, vertices shaded, shadow rays traced, and the
+#: threads' nanoseconds in it (measured around each call, to turn ticks into seconds)
 CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS, CLOCK_NS = range(len(STAGES),
                                                                          len(STAGES) + 5)
 CLOCK_ROWS = CLOCK_NS + 1
@@ -862,12 +861,13 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
     none is left: samples s0 .. s1 - 1 of each pixel into the running ``sums`` (see
     :func:`render_pass`), for each the radiance along its camera ray, and with opts[LAYERS] the
     first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal; the
-    derivative images into ``grad``; with a ``clock`` (else None), the ticks of each of the
-    :data:`STAGES` and the counts after them added to its rows. Each tile gets a new packet
-    work space (:func:`_packet_space`, for materials of at most ``nparams`` packed parameters
-    and ``nlobes`` lobes), so that nothing a thread traced before steers it. The tile's loop
-    is written here rather than in a kernel of its own: called, it rendered the white furnace
-    about 15 % slower (one thread); inlined, its own compile was wasted (11 s of CPU)."""
+    derivative images into ``grad``; with a ``clock`` (else None), the ticks of each stage
+    (:data:`.stats.STAGES`) and the counts after them added to its rows. Each tile gets a new
+    packet work space (:func:`_packet_space`, for materials of at most ``nparams`` packed
+    parameters and ``nlobes`` lobes), so that nothing a thread traced before steers it. The
+    tile's loop is written here rather than in a kernel of its own: called, it rendered the
+    white furnace about 15 % slower (one thread); inlined, its own compile was wasted (11 s of
+    CPU)."""
     spent = _clock_space(clock)
     began = _lap(clock, spent, -1, 0)
     w, h, size = opts[W], opts[H], opts[TILE]

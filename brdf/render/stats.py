@@ -8,16 +8,19 @@ turned into seconds with the threads' own wall time in the kernel, measured in t
 
 from dataclasses import dataclass
 
-#: What each stage of :func:`brdf.render._integrator.trace_tiles` does, by its name.
-STAGE_WORK = {
-    "paths": "paths bounced, ended into their pixels, started (camera rays)",
-    "rays": "path rays traced through the scene",
-    "numbers": "each vertex's uniform numbers drawn",
-    "vertices": "emission seen, frames, light samples, escaped rays' environment",
-    "shadow rays": "shadow rays traced",
-    "shading": "BSDFs sampled and evaluated",
-    "other": "tiles handed out and set up, work space, timing",
-}
+#: The stages of :func:`brdf.render._integrator.trace_tiles` that its clock times, in the
+#: order of the clock's rows, and what each does.
+STAGES = (
+    ("paths", "paths bounced, ended into their pixels, started (camera rays)"),
+    ("rays", "path rays traced through the scene"),
+    ("numbers", "each vertex's uniform numbers drawn"),
+    ("vertices", "emission seen, frames, light samples, escaped rays' environment"),
+    ("shadow rays", "shadow rays traced"),
+    ("shading", "BSDFs sampled and evaluated"),
+)
+#: What each stage of a :class:`RenderStats` does, by its name: :data:`STAGES`, then the rest
+#: of the threads' time in the kernel.
+STAGE_WORK = dict(STAGES, other="tiles handed out and set up, work space, timing")
 
 
 @dataclass(frozen=True)
@@ -73,7 +76,7 @@ def from_clock(clock, samples):
     from . import _integrator as X
     thread_seconds = clock[X.CLOCK_NS] * 1e-9
     per_tick = thread_seconds / clock[X.CLOCK_TOTAL] if clock[X.CLOCK_TOTAL] > 0 else 0.0
-    seconds = {name: float(clock[k]) * per_tick for k, name in enumerate(X.STAGES)}
+    seconds = {name: float(clock[k]) * per_tick for k, (name, _) in enumerate(STAGES)}
     seconds["other"] = max(thread_seconds - sum(seconds.values()), 0.0)
     return RenderStats(seconds, thread_seconds, int(samples), int(clock[X.CLOCK_STEPS]),
                        int(clock[X.CLOCK_SHADED]), int(clock[X.CLOCK_SHADOWS]))
