@@ -120,10 +120,7 @@ def render(args, out):
              "samples_per_second": result.samples_per_second,
              "mean": [float(x) for x in result.image.mean(axis=(0, 1))]}
     if result.stats is not None:
-        st = result.stats
-        stats["stages"] = {"cpu_seconds": st.seconds, "thread_seconds": st.thread_seconds,
-                           "samples": st.samples, "steps": st.steps, "shaded": st.shaded,
-                           "shadow_rays": st.shadow_rays}
+        stats["stages"] = result.stats.to_dict()
     if args.json:
         out.json(stats)
     else:

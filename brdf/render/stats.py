@@ -66,6 +66,13 @@ class RenderStats:
                      f"{self.steps} packet steps")
         return "\n".join(lines)
 
+    def to_dict(self):
+        """The figures as JSON-ready numbers (``brdf-fit render --stats --json``'s ``stages``),
+        the stages' CPU seconds under ``cpu_seconds``."""
+        return {"cpu_seconds": dict(self.seconds), "thread_seconds": self.thread_seconds,
+                "samples": self.samples, "steps": self.steps, "shaded": self.shaded,
+                "shadow_rays": self.shadow_rays}
+
     def __str__(self):
         return self.table()
 
