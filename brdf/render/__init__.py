@@ -201,7 +201,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     RenderResult
     """
     from ._integrator import CLOCK_ROWS, Gradient, Sums, render_pass
-    from .._jit import HAS_TICKS
+    from .._jit import HAS_TICKS, tick_count
     if not isinstance(scene, Scene):
         raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "
                          f"load()), got {type(scene).__name__}")
@@ -249,6 +249,8 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
                     np.zeros(CLOCK_ROWS, np.int64) if stats else None)
         compile_seconds = time.perf_counter() - t0
         clock = np.zeros(CLOCK_ROWS, np.int64) if stats else None
+        if stats:  # the counter's rate, over the sampling (ticks first: the first call compiles)
+            began = tick_count(), time.perf_counter_ns()
         with task(int(spp), "render", "spp", progress, units="spp") as meter:
             t0 = time.perf_counter()
             # fewer, longer passes spend less on each tile's last bounces, when its packet runs
@@ -261,10 +263,14 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
                             None if derivatives is None else Gradient(slots, dacc), clock)
                 meter.update(s1 - s0)
             seconds = time.perf_counter() - t0
+        timed = None
+        if stats:
+            ended = tick_count(), time.perf_counter_ns()
+            timed = from_clock(clock, w * h * int(spp),
+                               1e-9 * (ended[1] - began[1]) / max(ended[0] - began[0], 1))
     n = float(spp)
     mean = acc / n
     grad = dacc / n if derivatives is not None else None
-    timed = from_clock(clock, w * h * int(spp)) if stats else None
     if not layers:
         return RenderResult(mean, None, None, None, int(spp), seed, seconds, compile_seconds,
                             grad, timed)

@@ -41,7 +41,6 @@ sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3 (``--al
 """
 
 import math
-import time
 from collections import namedtuple
 
 import numpy as np
@@ -288,11 +287,9 @@ Gradient = namedtuple("Gradient", "slots acc")
 #: :func:`trace_tiles` in the order of :data:`.stats.STAGES` (paths moved on, ended and started
 #: by :func:`_advance`; their rays traced; the vertices' numbers drawn; the vertices of
 #: :func:`_vertices`; the shadow rays traced; the shading of :func:`_shade`), then the ticks in
-#: :func:`trace_tiles` in all, packet steps, vertices shaded, shadow rays traced, and the
-#: threads' nanoseconds in it (measured around each call, to turn ticks into seconds)
-CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS, CLOCK_NS = range(len(STAGES),
-                                                                         len(STAGES) + 5)
-CLOCK_ROWS = CLOCK_NS + 1
+#: :func:`trace_tiles` in all, packet steps, vertices shaded and shadow rays traced
+CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS = range(len(STAGES), len(STAGES) + 4)
+CLOCK_ROWS = CLOCK_SHADOWS + 1
 
 
 @inline_kernel
@@ -835,7 +832,7 @@ def _clock_in(clock, spent, began):
     ticks since ``began`` as the total."""
     if clock is not None:
         _lap(clock, spent, CLOCK_TOTAL, began)
-        for r in range(CLOCK_NS):
+        for r in range(CLOCK_ROWS):
             fetch_add(clock[r:], spent[r])
 
 
@@ -921,8 +918,8 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
     (h, w, 6); the derivative images into the :data:`Gradient` ``grad``, or None (a type of
     its own: numba prunes the derivatives' passes from that compilation, which cost a third
     more of the renderer's compile time); with a ``clock`` (int64, CLOCK_ROWS; only where
-    :data:`brdf._jit.HAS_TICKS`), the stages' ticks, the counts and the threads' nanoseconds
-    added to it (None, the default, is again a type of its own, without the timing).
+    :data:`brdf._jit.HAS_TICKS`), the stages' ticks and the counts added to it (None, the
+    default, is again a type of its own, without the timing).
     opts[THREADS] threads (:func:`brdf._jit.in_threads`) run :func:`trace_tiles`, taking
     tiles from one queue; a tile's pixels are its own, so the sums do not depend on who traced
     it. Each thread takes the next tile as it finishes one: equal shares would wait on the
@@ -933,14 +930,9 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
     nparams = max(mats.params.shape[0], 1)
     nlobes = int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1))
     queue = np.zeros(1, np.int64)
-    spans = []
 
     def work():
-        t = time.perf_counter_ns()
         trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
                     nlobes, clock)
-        spans.append(time.perf_counter_ns() - t)
 
     in_threads(max(1, min(int(opts[THREADS]), ntiles)), work)
-    if clock is not None:
-        clock[CLOCK_NS] += sum(spans)

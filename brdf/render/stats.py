@@ -2,8 +2,8 @@
 (:func:`brdf.render.render` with ``stats=True``).
 
 The kernel advances a packet of paths a vertex at a time through named stages (pbrt-v4's
-wavefront work items are the model): each stage's time-stamp ticks are summed per thread and
-turned into seconds with the threads' own wall time in the kernel, measured in the same run.
+wavefront work items are the model): each stage's time-stamp ticks are summed over the threads
+and turned into seconds at the counter's rate, measured over the same render.
 """
 
 from dataclasses import dataclass
@@ -34,7 +34,7 @@ class RenderStats:
         Stage name (:data:`STAGE_WORK`, in order) to CPU seconds; ``other`` is the rest of the
         threads' time in the kernel.
     thread_seconds : float
-        The kernel's wall time summed over its threads (the stages' sum).
+        The time its threads spent in the kernel, summed (the stages' sum).
     samples : int
         Paths traced (pixels times samples per pixel).
     steps : int
@@ -77,13 +77,14 @@ class RenderStats:
         return self.table()
 
 
-def from_clock(clock, samples):
+def from_clock(clock, samples, seconds_per_tick):
     """The :class:`RenderStats` of a render's ``clock`` (the rows that
-    :func:`brdf.render._integrator.render_pass` adds to) for ``samples`` paths."""
+    :func:`brdf.render._integrator.render_pass` adds to) for ``samples`` paths, its ticks
+    turned into seconds at ``seconds_per_tick``."""
     from . import _integrator as X
-    thread_seconds = clock[X.CLOCK_NS] * 1e-9
-    per_tick = thread_seconds / clock[X.CLOCK_TOTAL] if clock[X.CLOCK_TOTAL] > 0 else 0.0
-    seconds = {name: float(clock[k]) * per_tick for k, (name, _) in enumerate(STAGES)}
+    seconds = {name: float(clock[k]) * seconds_per_tick for k, (name, _) in enumerate(STAGES)}
+    thread_seconds = float(clock[X.CLOCK_TOTAL]) * seconds_per_tick
+    # each thread's total encloses its stages: the rest is what no stage counts
     seconds["other"] = max(thread_seconds - sum(seconds.values()), 0.0)
     return RenderStats(seconds, thread_seconds, int(samples), int(clock[X.CLOCK_STEPS]),
                        int(clock[X.CLOCK_SHADED]), int(clock[X.CLOCK_SHADOWS]))
