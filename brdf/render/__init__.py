@@ -31,7 +31,7 @@ from .scene import (Camera, DirectionalLight, Environment, GoniometricLight, Mat
 from .scenes import BUILTIN, builtin, load
 from .validate import validate
 from .derivatives import Derivatives
-from .stats import RenderStats, from_clock
+from .stats import CLOCK_ROWS, RenderStats, from_clock
 
 __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh", "box",
            "rectangle", "Material", "PointLight", "SpotLight", "DirectionalLight",
@@ -200,7 +200,7 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     -------
     RenderResult
     """
-    from ._integrator import CLOCK_ROWS, Gradient, Sums, render_pass
+    from ._integrator import Gradient, Sums, render_pass
     from .._jit import HAS_TICKS, tick_count
     if not isinstance(scene, Scene):
         raise InputError(f"render: scene must be a brdf.render.Scene (see builtin() and "

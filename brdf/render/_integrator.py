@@ -55,7 +55,8 @@ from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
                                stack_array, with_last_axis)
 from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
-from .stats import STAGES
+from .stats import (CLOCK_ROWS, CLOCK_SHADED, CLOCK_SHADOWS, CLOCK_STEPS, CLOCK_TOTAL, NUMBERS,
+                    PATHS, RAYS, SHADING, SHADOW_RAYS, VERTICES)
 
 MIS, BSDF, LIGHT = 0, 1, 2
 #: ``opts`` layout: width, height, max depth, Russian-roulette depth, strategy, jitter, tile,
@@ -283,13 +284,6 @@ Sums = namedtuple("Sums", "acc acc2 aov")
 #: mode, carried along the path), and both are unbiased for the image and its derivatives at
 #: theta. Russian roulette would end paths on the evaluated throughput: the caller turns it off.
 Gradient = namedtuple("Gradient", "slots acc")
-#: ``clock``'s rows (:func:`render_pass`): the time-stamp ticks of each stage of
-#: :func:`trace_tiles` in the order of :data:`.stats.STAGES` (paths moved on, ended and started
-#: by :func:`_advance`; their rays traced; the vertices' numbers drawn; the vertices of
-#: :func:`_vertices`; the shadow rays traced; the shading of :func:`_shade`), then the ticks in
-#: :func:`trace_tiles` in all, packet steps, vertices shaded and shadow rays traced
-CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS = range(len(STAGES), len(STAGES) + 4)
-CLOCK_ROWS = CLOCK_SHADOWS + 1
 
 
 @inline_kernel
@@ -859,8 +853,8 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
     :func:`render_pass`), for each the radiance along its camera ray, and with opts[LAYERS] the
     first hit's albedo estimate (f cos / pdf of one BSDF sample) and shading normal; the
     derivative images into ``grad``; with a ``clock`` (else None), the ticks of each stage
-    (:data:`.stats.STAGES`) and the counts after them added to its rows. Each tile gets a new
-    packet work space (:func:`_packet_space`, for materials of at most ``nparams`` packed
+    and the counts after them added to its rows (:data:`.stats.CLOCK_ROWS`). Each tile gets a
+    new packet work space (:func:`_packet_space`, for materials of at most ``nparams`` packed
     parameters and ``nlobes`` lobes), so that nothing a thread traced before steers it. The
     tile's loop is written here rather than in a kernel of its own: called, it rendered the
     white furnace about 15 % slower (one thread); inlined, its own compile was wasted (11 s of
@@ -887,28 +881,28 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
         while True:
             t = _lap(clock, spent, -1, 0)
             start, busy = _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad)
-            t = _lap(clock, spent, 0, t)
+            t = _lap(clock, spent, PATHS, t)
             if busy == 0:
                 break
             trace_packet(geo, p.stack, p.dist, fl, p.inv, il[ENTERS], fl[T], il[HIT], False,
                          PACKET)
-            t = _lap(clock, spent, 1, t)
+            t = _lap(clock, spent, RAYS, t)
             _draw(fl, il, p.state)
-            t = _lap(clock, spent, 2, t)
+            t = _lap(clock, spent, NUMBERS, t)
             shading, shadows = _vertices(opts, geo, mats, lights, p)
             if grad is not None:
                 _emitted(p)
-            t = _lap(clock, spent, 3, t)
+            t = _lap(clock, spent, VERTICES, t)
             if shadows > 0:
                 # whole SIMD registers of lanes (eight numbers: AVX-512)
                 trace_packet(geo, p.stack, p.dist, sh, p.inv, il[ENTERS], sh[LENGTH],
                              il[BLOCKER], True, min(PACKET, (shadows + 7) // 8 * 8))
-            t = _lap(clock, spent, 4, t)
+            t = _lap(clock, spent, SHADOW_RAYS, t)
             if shading > 0:
                 _shade(opts, mats, p)
                 if grad is not None:
                     _shade_target(opts, mats, grad.slots, p)
-            _lap(clock, spent, 5, t)
+            _lap(clock, spent, SHADING, t)
             _count(clock, spent, shading, shadows)
 
 

@@ -18,6 +18,13 @@ STAGES = (
     ("shadow rays", "shadow rays traced"),
     ("shading", "BSDFs sampled and evaluated"),
 )
+#: The rows of a render's clock (an int64 array of CLOCK_ROWS that
+#: :func:`brdf.render._integrator.render_pass` adds to): each stage's time-stamp ticks, in the
+#: order of :data:`STAGES`; then the ticks of the threads' whole time in the kernel, the packet
+#: steps, the vertices shaded and the shadow rays traced.
+PATHS, RAYS, NUMBERS, VERTICES, SHADOW_RAYS, SHADING = range(len(STAGES))
+CLOCK_TOTAL, CLOCK_STEPS, CLOCK_SHADED, CLOCK_SHADOWS = range(len(STAGES), len(STAGES) + 4)
+CLOCK_ROWS = CLOCK_SHADOWS + 1
 #: What each stage of a :class:`RenderStats` does, by its name: :data:`STAGES`, then the rest
 #: of the threads' time in the kernel.
 STAGE_WORK = dict(STAGES, other="tiles handed out and set up, work space, timing")
@@ -78,13 +85,11 @@ class RenderStats:
 
 
 def from_clock(clock, samples, seconds_per_tick):
-    """The :class:`RenderStats` of a render's ``clock`` (the rows that
-    :func:`brdf.render._integrator.render_pass` adds to) for ``samples`` paths, its ticks
-    turned into seconds at ``seconds_per_tick``."""
-    from . import _integrator as X
+    """The :class:`RenderStats` of a render's ``clock`` (its rows: :data:`CLOCK_ROWS`) for
+    ``samples`` paths, its ticks turned into seconds at ``seconds_per_tick``."""
     seconds = {name: float(clock[k]) * seconds_per_tick for k, (name, _) in enumerate(STAGES)}
-    thread_seconds = float(clock[X.CLOCK_TOTAL]) * seconds_per_tick
+    thread_seconds = float(clock[CLOCK_TOTAL]) * seconds_per_tick
     # each thread's total encloses its stages: the rest is what no stage counts
     seconds["other"] = max(thread_seconds - sum(seconds.values()), 0.0)
-    return RenderStats(seconds, thread_seconds, int(samples), int(clock[X.CLOCK_STEPS]),
-                       int(clock[X.CLOCK_SHADED]), int(clock[X.CLOCK_SHADOWS]))
+    return RenderStats(seconds, thread_seconds, int(samples), int(clock[CLOCK_STEPS]),
+                       int(clock[CLOCK_SHADED]), int(clock[CLOCK_SHADOWS]))
