@@ -51,17 +51,25 @@ def _fuzz(seeds, kind, count, tmp_path):
 KINDS = ["binary", "csv", "alta", "npz", "bsdf", "json", "toml", "report", "ies"]
 
 
+#: the tests of the seed files share a worker (README's test command uses --dist loadgroup):
+#: each worker would otherwise run the seeds' commands again, 20 s each time on a slow host
+SEEDS = pytest.mark.xdist_group("fuzz-seeds")
+
+
+@SEEDS
 @pytest.mark.parametrize("kind", KINDS)
 def test_mutated_files_get_one_line_and_status(seeds, kind, tmp_path):
     _fuzz(seeds, kind, CASES.get(kind, DEFAULT_CASES), tmp_path)
 
 
+@SEEDS
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_mutated_files_many(seeds, kind, tmp_path):
     _fuzz(seeds, kind, SLOW_CASES, tmp_path)
 
 
+@SEEDS
 def test_the_seeds_are_valid(seeded):
     """Unmutated, every command reads its seed and succeeds (or fails a check): the mutants'
     refusals are theirs."""
@@ -292,6 +300,7 @@ with atomic_output({str(out)!r}) as tmp:
     assert [n.name for n in tmp_path.iterdir()] == ["big.exr"]
 
 
+@SEEDS
 def test_convert_onto_a_folder_names_the_folder(seeds, tmp_path):
     target = tmp_path / "adir.npz"
     target.mkdir()
