@@ -6,8 +6,8 @@ D is anisotropic with roughness ``alpha`` along the tangent x and ``alpha_y`` al
 when ``alpha_y`` is not given). G2 is Smith's masking-shadowing, separable G1(wi) G1(wo) by
 default (the form in Walter et al. 2007 and Mitsuba 3) or height-correlated
 1 / (1 + Lambda(wi) + Lambda(wo)) (Heitz 2014, "Understanding the Masking-Shadowing Function in
-Microfacet-Based BRDFs", eq. 99). Sampling draws visible normals (Heitz 2018 for GGX; Heitz &
-d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
+Microfacet-Based BRDFs", eq. 99). Sampling draws visible normals (Dupuy & Benyoub 2023's spherical
+caps for GGX; Heitz & d'Eon 2014 for Beckmann), so pdf(wo) = G1(wi) D(h) / (4 cos(theta_i)).
 """
 
 import math
@@ -64,7 +64,8 @@ class GGXModel(Microfacet):
     aliases = ("trowbridge-reitz", "cook-torrance-ggx")
     summary = "Cook-Torrance microfacet lobe with GGX normals"
     citation = ("Walter et al. 2007, Microfacet Models for Refraction through Rough Surfaces, "
-                "eqs. 20, 33, 34; anisotropy and sampling: Heitz 2014 eq. 85-86, Heitz 2018")
+                "eqs. 20, 33, 34; anisotropy: Heitz 2014 eq. 85-86; sampling: Heitz 2018 eq. 17, "
+                "Dupuy & Benyoub 2023")
     kind = _kinds.GGX
     distribution = GGX
 
@@ -336,25 +337,13 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
     vx *= inv
     vy *= inv
     vz = iz * inv
-    if dist is GGX:  # Heitz 2018, JCGT 7(4), listing 1
-        lensq = vx * vx + vy * vy
-        if lensq > 0.0:
-            il = 1.0 / math.sqrt(lensq)
-            t1x, t1y = -vy * il, vx * il
-        else:
-            t1x, t1y = 1.0, 0.0
-        t2x, t2y, t2z = -vz * t1y, vz * t1x, vx * t1y - vy * t1x  # T2 = cross(V, T1)
-        r = math.sqrt(u1)
+    if dist is GGX:  # Dupuy & Benyoub 2023, "Sampling Visible GGX Normals with Spherical Caps"
+        # (listing 3): V plus a point uniform on the unit sphere's cap z > -V.z, unstretched;
+        # three square roots and no tangent frame, where Heitz 2018's listing 1 takes six
+        z = (1.0 - u1) * (1.0 + vz) - vz
+        st = math.sqrt(max(0.0, 1.0 - z * z))
         sin_phi, cos_phi = sincos_turn(u2)
-        p1 = r * cos_phi
-        p2 = r * sin_phi
-        s = 0.5 * (1.0 + vz)
-        p2 = (1.0 - s) * math.sqrt(max(0.0, 1.0 - p1 * p1)) + s * p2
-        pz = math.sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2))
-        nx = p1 * t1x + p2 * t2x + pz * vx
-        ny = p1 * t1y + p2 * t2y + pz * vy
-        nz = p2 * t2z + pz * vz
-        mx, my, mz = ax * nx, ay * ny, max(0.0, nz)
+        mx, my, mz = ax * (st * cos_phi + vx), ay * (st * sin_phi + vy), max(0.0, z + vz)
     else:  # Heitz & d'Eon 2014, section 5.2: standard visible slopes, rotate, unstretch
         sin_t = math.sqrt(vx * vx + vy * vy)
         if sin_t < 1e-9:
