@@ -25,7 +25,11 @@ small area light); ``plastic`` (a ``lambert + ggx`` sphere there); ``furnace`` (
 sphere alone in a constant environment); ``envmap`` (a ``lambert + ggx`` sphere filling the
 view, lit only by an environment map); ``textured`` (a floor whose albedo is an image);
 ``mesh`` (a 40,000-triangle sphere); ``merl`` (a measured table on the MERL grid);
-``point`` and ``spot`` (point and spot lights). Two have no identical counterpart in
+``point`` and ``spot`` (point and spot lights). ``--scene void``, left out of ``--all``, moves
+the furnace's sphere behind its camera: every path ends at its camera ray, in the constant
+environment, so a sample costs what a path costs without a vertex; the furnace's time less the
+void's, over the furnace's vertices a sample, is what a vertex costs (printed last with
+``--stages``, which counts the vertices). Two have no identical counterpart in
 Mitsuba, and their mean images are not compared: ``merl`` (Mitsuba's ``measured`` plugin
 reads an RGL tensor, here written from the model the table was measured from, by
 :func:`brdf.export`'s ``measured=True``: another resampling of the same BRDF) and ``spot``
@@ -74,6 +78,12 @@ SCENES = {
     "furnace": {"camera": {"origin": (0.0, 0.0, 4.0), "target": (0.0, 0.0, 0.0),
                            "up": (0.0, 1.0, 0.0), "fov": 32.0},
                 "shapes": [_SPHERE + ("ggx(alpha=0.5)",)], "environment": "constant"},
+    # the furnace's sphere behind its camera: every camera ray escapes, so a sample costs
+    # what a path costs without a vertex (a diagnostic, not in --all; see the docstring)
+    "void": {"camera": {"origin": (0.0, 0.0, 4.0), "target": (0.0, 0.0, 0.0),
+                        "up": (0.0, 1.0, 0.0), "fov": 32.0},
+             "shapes": [("sphere", {"centre": (0.0, 0.0, 8.0), "radius": 1.0},
+                         "ggx(alpha=0.5)")], "environment": "constant"},
     "envmap": {"camera": {"origin": (0.0, 0.0, 2.2), "target": (0.0, 0.0, 0.0),
                           "up": (0.0, 1.0, 0.0), "fov": 40.0},
                "shapes": [_SPHERE + (_PLASTIC,)], "environment": "map"},
@@ -88,7 +98,9 @@ SCENES = {
              "lights": [("spot", {"position": (1.0, 3.0, 1.0), "direction": (-1.0, -3.0, -1.0),
                                   "intensity": 20.0, "cutoff": 30.0})], "same": False},
 }
-ALL = ("cornell",) + tuple(SCENES)
+#: scenes that diagnose rather than stand for a workload: timed only when named
+DIAGNOSTIC = ("void",)
+ALL = ("cornell",) + tuple(n for n in SCENES if n not in DIAGNOSTIC)
 
 
 def _matrix(desc):
@@ -371,7 +383,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--layers", action="store_true",
                     help="ours also estimates the variance, albedo and normal layers")
-    ap.add_argument("--scene", action="append", choices=ALL,
+    ap.add_argument("--scene", action="append", choices=ALL + DIAGNOSTIC,
                     help="a scene to time (repeatable; default: cornell)")
     ap.add_argument("--all", action="store_true", help="time every scene")
     ap.add_argument("--stages", action="store_true",
@@ -401,12 +413,27 @@ def main():
         print(f"\nCPU ns per sample, stage by stage (all threads; mitsuba's wall ns per sample "
               f"times {os.cpu_count()} cores for scale)")
         print(f"{'scene':10s} " + " ".join(f"{s[:11]:>11s}" for s in stages)
-              + f" {'all':>7s} {'mitsuba':>8s}")
+              + f" {'all':>7s} {'mitsuba':>8s} {'shaded':>7s}")
         for f in figures:
             st = f["stats"]
             print(f"{f['name']:10s} " + " ".join(f"{1e9 * st.seconds[s] / n:11.1f}"
                                                  for s in stages)
-                  + f" {1e9 * st.thread_seconds / n:7.1f} {1e9 * os.cpu_count() / f['theirs']:8.1f}")
+                  + f" {1e9 * st.thread_seconds / n:7.1f} {1e9 * os.cpu_count() / f['theirs']:8.1f}"
+                  + f" {st.shaded / n:7.3f}")
+        print("(shaded: vertices shaded a sample)")
+    by_name = {f["name"]: f for f in figures}
+    if "furnace" in by_name and "void" in by_name and args.stages:
+        # a sample of the furnace is the void's path plus its vertices (one at most a path:
+        # the sphere is convex), counted in the stages' render
+        furnace, void = by_name["furnace"], by_name["void"]
+        cores = os.cpu_count()
+        hits = furnace["stats"].shaded / (args.size * args.size * args.spp)
+        ours = [cores * 1e9 / f["ours"] for f in (furnace, void)]
+        theirs = [cores * 1e9 / f["theirs"] for f in (furnace, void)]
+        print(f"\nCPU ns a sample, best renders: furnace ours {ours[0]:.1f}, mitsuba "
+              f"{theirs[0]:.1f}; void (no vertex) ours {ours[1]:.1f}, mitsuba {theirs[1]:.1f}; "
+              f"a furnace vertex ({hits:.3f} a sample) ours {(ours[0] - ours[1]) / hits:.1f}, "
+              f"mitsuba {(theirs[0] - theirs[1]) / hits:.1f}")
 
 
 if __name__ == "__main__":
