@@ -73,18 +73,19 @@ _PLASTIC_RGB = "lambert(albedo=[0.4,0.4,0.4]) + ggx(alpha=0.2, ks=[0.5,0.5,0.5])
 
 #: name -> description: camera, shapes (kind, geometry, material spec), lights, environment,
 #: and whether Mitsuba renders the same thing (else the mean images are not compared)
+#: a rough GGX sphere alone in a constant environment, seen whole
+_FURNACE = {"camera": {"origin": (0.0, 0.0, 4.0), "target": (0.0, 0.0, 0.0),
+                       "up": (0.0, 1.0, 0.0), "fov": 32.0},
+            "shapes": [_SPHERE + ("ggx(alpha=0.5)",)], "environment": "constant"}
+
 SCENES = {
     "glossy": {"camera": _CAM, "shapes": [_SPHERE + ("ggx(alpha=0.1)",), _FLOOR, _AREA]},
     "plastic": {"camera": _CAM, "shapes": [_SPHERE + (_PLASTIC,), _FLOOR, _AREA]},
-    "furnace": {"camera": {"origin": (0.0, 0.0, 4.0), "target": (0.0, 0.0, 0.0),
-                           "up": (0.0, 1.0, 0.0), "fov": 32.0},
-                "shapes": [_SPHERE + ("ggx(alpha=0.5)",)], "environment": "constant"},
-    # the furnace's sphere behind its camera: every camera ray escapes, so a sample costs
-    # what a path costs without a vertex (a diagnostic, not in --all; see the docstring)
-    "void": {"camera": {"origin": (0.0, 0.0, 4.0), "target": (0.0, 0.0, 0.0),
-                        "up": (0.0, 1.0, 0.0), "fov": 32.0},
-             "shapes": [("sphere", {"centre": (0.0, 0.0, 8.0), "radius": 1.0},
-                         "ggx(alpha=0.5)")], "environment": "constant"},
+    "furnace": _FURNACE,
+    # the furnace with its sphere behind the camera: every camera ray escapes, so a sample
+    # costs what a path costs without a vertex (a diagnostic, not in --all; see the docstring)
+    "void": {**_FURNACE, "shapes": [("sphere", {"centre": (0.0, 0.0, 8.0), "radius": 1.0},
+                                     _FURNACE["shapes"][0][2])]},
     "envmap": {"camera": {"origin": (0.0, 0.0, 2.2), "target": (0.0, 0.0, 0.0),
                           "up": (0.0, 1.0, 0.0), "fov": 40.0},
                "shapes": [_SPHERE + (_PLASTIC,)], "environment": "map"},
@@ -424,19 +425,18 @@ def main():
                   + f" {1e9 * st.thread_seconds / n:7.1f} {1e9 * os.cpu_count() / f['theirs']:8.1f}"
                   + f" {st.shaded / n:7.3f}")
         print("(shaded: vertices shaded a sample)")
-    by_name = {f["name"]: f for f in figures}
-    if "furnace" in by_name and "void" in by_name and args.stages:
-        # a sample of the furnace is the void's path plus its vertices (one at most a path:
-        # the sphere is convex), counted in the stages' render
-        furnace, void = by_name["furnace"], by_name["void"]
-        cores = os.cpu_count()
-        hits = furnace["stats"].shaded / (args.size * args.size * args.spp)
-        ours = [cores * 1e9 / f["ours"] for f in (furnace, void)]
-        theirs = [cores * 1e9 / f["theirs"] for f in (furnace, void)]
-        print(f"\nCPU ns a sample, best renders: furnace ours {ours[0]:.1f}, mitsuba "
-              f"{theirs[0]:.1f}; void (no vertex) ours {ours[1]:.1f}, mitsuba {theirs[1]:.1f}; "
-              f"a furnace vertex ({hits:.3f} a sample) ours {(ours[0] - ours[1]) / hits:.1f}, "
-              f"mitsuba {(theirs[0] - theirs[1]) / hits:.1f}")
+        by_name = {f["name"]: f for f in figures}
+        if "furnace" in by_name and "void" in by_name:
+            # a sample of the furnace is the void's path plus its vertices (one at most a
+            # path: the sphere is convex), counted in the stages' render
+            furnace, void = by_name["furnace"], by_name["void"]
+            hits = furnace["stats"].shaded / n
+            ours = [os.cpu_count() * 1e9 / f["ours"] for f in (furnace, void)]
+            theirs = [os.cpu_count() * 1e9 / f["theirs"] for f in (furnace, void)]
+            print(f"\nCPU ns a sample, best renders: furnace ours {ours[0]:.1f}, mitsuba "
+                  f"{theirs[0]:.1f}; void (no vertex) ours {ours[1]:.1f}, mitsuba "
+                  f"{theirs[1]:.1f}; a furnace vertex ({hits:.3f} a sample) ours "
+                  f"{(ours[0] - ours[1]) / hits:.1f}, mitsuba {(theirs[0] - theirs[1]) / hits:.1f}")
 
 
 if __name__ == "__main__":
