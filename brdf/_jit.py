@@ -705,7 +705,17 @@ def _always_inlined(dispatcher):
     return dispatcher
 
 
-def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD, chunks_per_thread=8):
+#: The rows a chunk of a :func:`threaded_kernel`'s call starts at a multiple of, unless the
+#: kernel names its own: more than one trip of a vectorised loop's body covers (AVX-512's 8
+#: float64 lanes times LLVM's interleave of 4, and its vector epilogue). A row's bits depend
+#: on whether it falls in the body or the scalar remainder of such a loop (on AVX-512 hosts
+#: the two round some formulas differently), so the rows of every chunk must fall where they
+#: fall in one call over all rows.
+VECTOR_ROWS = 64
+
+
+def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD, chunks_per_thread=8,
+                    align=VECTOR_ROWS):
     """Compile an array kernel whose loop over rows is serial and runs without the GIL, and
     call it on chunks of those rows in the threads of :func:`brdf._threads.thread_count`
     (which :func:`brdf._threads.serial_below` lowers to one): a ``prange`` loop's speed
@@ -717,13 +727,16 @@ def threaded_kernel(*rows, rows_per_thread=ROWS_PER_THREAD, chunks_per_thread=8)
     chunks per thread, which the threads, the caller's included, take in turn as they finish
     one (1: one chunk each). ``rows`` names the arguments whose first axis is the loop's; one
     whose first axis has another length (an empty placeholder), or None, goes whole to every
-    chunk. The call returns the sum of the chunks' results in chunk order (None for a kernel
-    without one); each row's values do not depend on the chunks."""
+    chunk. Every chunk but the first starts at a multiple of ``align`` rows: a kernel that
+    works in batches of rows (lists of the lanes that chose a lobe, drawn in SIMD lanes)
+    passes its batch, so that a row falls in the same place of the same batch however the
+    rows are cut. The call returns the sum of the chunks' results in chunk order (None for a
+    kernel without one); each row's values do not depend on the chunks."""
     def compile_rows(fn):
         names = list(inspect.signature(fn).parameters)
         dispatcher = _inputs_as_writable(quick_loading(numba.njit(fn, **_OPTIONS, nogil=True)))
         return RowThreads(dispatcher, tuple(names.index(r) for r in rows), rows_per_thread,
-                          chunks_per_thread)
+                          chunks_per_thread, align)
     return compile_rows
 
 
@@ -731,9 +744,10 @@ class RowThreads:
     """A :func:`threaded_kernel`: called like its dispatcher (``dispatcher``), whose other
     attributes it passes on."""
 
-    def __init__(self, dispatcher, rows, rows_per_thread, chunks_per_thread):
+    def __init__(self, dispatcher, rows, rows_per_thread, chunks_per_thread, align):
         self.dispatcher, self.rows = dispatcher, rows
         self.rows_per_thread, self.chunks_per_thread = rows_per_thread, chunks_per_thread
+        self.align = align
         functools.update_wrapper(self, dispatcher.py_func)
 
     def __getattr__(self, name):
@@ -747,10 +761,11 @@ class RowThreads:
         # several chunks per thread, each thread taking the next as it finishes one: equal
         # shares waited on the slower core of a shared host, and on the woken thread's start
         chunks = min(n // self.rows_per_thread, threads * self.chunks_per_thread)
-        # chunk t ends at ceil(n t / chunks): rows dealt out to the threads like cards
-        # (Model.albedo's) and sorted by hand then make exactly one hand per chunk when there
-        # is one chunk per thread
-        cuts = [-(-n * t // chunks) for t in range(chunks + 1)]
+        cuts = chunk_cuts(n, chunks, self.align)
+        chunks = len(cuts) - 1
+        if chunks == 1:
+            return self.dispatcher(*args)
+        threads = min(threads, chunks)
         results = [None] * chunks
         taken = itertools.count()  # next() of a count is atomic under the GIL
 
@@ -766,6 +781,21 @@ class RowThreads:
 
         in_threads(threads, work, short=True)  # what the pool has not started is dropped
         return None if results[0] is None else sum(results)
+
+
+def chunk_cuts(n, chunks, align=1):
+    """Where ``chunks`` chunks of ``n`` rows start and end (``chunks + 1`` numbers from 0 to
+    n, or fewer where chunks would be empty): chunk t ends at ceil(n t / chunks) rounded up
+    to a multiple of ``align``. With ``align`` 1, rows dealt out to the threads like cards
+    (Model.albedo's) and sorted by hand make exactly one hand per chunk when there is one
+    chunk per thread."""
+    cuts = [0]
+    for t in range(1, chunks + 1):
+        end = -(-n * t // chunks)
+        end = min(n, -(-end // align) * align)
+        if end > cuts[-1]:
+            cuts.append(end)
+    return cuts
 
 
 _ROW_POOL = []

@@ -555,7 +555,7 @@ def test_a_view_with_a_constant_last_axis_counts_its_reference():
     assert done.returncode == 0 and done.stdout.split() == ["10000.0"], done.stderr[-2000:]
 
 
-@threaded_kernel("a", "out", rows_per_thread=1)
+@threaded_kernel("a", "out", rows_per_thread=1, align=1)
 def _rows_doubled(a, scale, out):
     n = 0
     for k in range(a.shape[0]):
@@ -587,7 +587,7 @@ def test_a_threaded_kernel_wakes_no_thread_for_fewer_rows_than_it_gives_one(monk
     asked = []
     pool = _jit._row_pool()
     monkeypatch.setattr(_jit, "_row_pool", lambda: asked.append(1) or pool)
-    kernel = threaded_kernel("a", "out", rows_per_thread=4)(_rows_doubled.py_func)
+    kernel = threaded_kernel("a", "out", rows_per_thread=4, align=1)(_rows_doubled.py_func)
     with using_threads(2):
         for n, split in [(1, False), (7, False), (8, True), (9, True)]:
             a, out = np.linspace(-1.0, 2.0, n), np.empty(n)
@@ -624,8 +624,26 @@ def test_a_threaded_kernel_does_not_wait_for_a_busy_pool():
             f.result()
 
 
-_rows_doubled_in_chunks = threaded_kernel("a", "out", rows_per_thread=1, chunks_per_thread=4)(
+_rows_doubled_in_chunks = threaded_kernel("a", "out", rows_per_thread=1, chunks_per_thread=4,
+                                           align=1)(
     _rows_doubled.py_func)
+
+
+@pytest.mark.parametrize("n, chunks, align", [(32769, 2, 256), (1001, 16, 64), (7, 7, 1),
+                                               (100, 8, 64), (65, 3, 64), (5000, 16, 1)])
+def test_a_threaded_kernels_chunks_start_at_multiples_of_its_alignment(n, chunks, align):
+    """Chunks cover the rows once, in order, none empty, each but the first starting at a
+    multiple of ``align`` (where a batched kernel's batches, and a vectorised loop's
+    body, start in a call over all rows), and none longer than an even share plus one
+    ``align``."""
+    from brdf._jit import chunk_cuts
+    cuts = chunk_cuts(n, chunks, align)
+    assert cuts[0] == 0 and cuts[-1] == n and len(cuts) - 1 <= chunks
+    assert all(a < b for a, b in zip(cuts, cuts[1:]))
+    assert all(c % align == 0 for c in cuts[:-1])
+    assert max(b - a for a, b in zip(cuts, cuts[1:])) <= -(-n // chunks) + align
+    if align == 1:  # the cards' chunks: ceil(n t / chunks)
+        assert cuts == [-(-n * t // chunks) for t in range(chunks + 1)]
 
 
 @pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2, reason="one thread")

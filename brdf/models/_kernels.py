@@ -942,7 +942,7 @@ def eval_rows(kinds, offs, p, nch, wi, wo, out, low, high):
     return bad
 
 
-@threaded_kernel("wi", "wo", "out")
+@threaded_kernel("wi", "wo", "out", align=ROWS)
 def eval_array(kinds, offs, p, nch, wi, wo, out, low, high):
     """Set ``out`` (n, C) to f(wi, wo); returns the number of pairs where the squared length of
     wi or wo is outside [low, high] (NaN included): the screen of unit vectors, made here
@@ -1026,7 +1026,7 @@ def _batch_space(nl, nch):
             np.zeros((5, BATCH), np.int64), np.zeros(4, np.int64))
 
 
-@threaded_kernel("wi", "wo", "out")
+@threaded_kernel("wi", "wo", "out", align=BATCH)
 def pdf_array(kinds, offs, p, nch, wi, wo, out):
     n = wi.shape[0]
     space = _batch_space(kinds.shape[0], nch)
@@ -1035,7 +1035,7 @@ def pdf_array(kinds, offs, p, nch, wi, wo, out):
                    space)
 
 
-@threaded_kernel("wi", "u", "wo", "pdf", "weight")
+@threaded_kernel("wi", "u", "wo", "pdf", "weight", align=BATCH)
 def sample_array(kinds, offs, p, nch, wi, u, wo, pdf, weight):
     n = wi.shape[0]
     space = _batch_space(kinds.shape[0], nch)
@@ -1268,7 +1268,8 @@ def _lobe_albedo(kind, q, nch, term, ix, iy, iz, rules, tol, capacity, out, err,
 
 
 # a row is a whole cubature; Model.albedo deals the rows out to one chunk per thread
-@threaded_kernel("wi", "out", "err", "panels", "grad", rows_per_thread=1, chunks_per_thread=1)
+@threaded_kernel("wi", "out", "err", "panels", "grad", rows_per_thread=1, chunks_per_thread=1,
+                 align=1)
 def albedo_array(kinds, offs, p, nch, wi, rules, tol, capacity, out, err, panels, grad):
     """Directional albedo per incident direction: delta lobes exactly, others adaptively.
 

@@ -316,7 +316,7 @@ def _driver_space(mats, m, v, k0, count, lists, counts):
             np.zeros((BATCH, 2)), np.zeros(BATCH, np.int64))
 
 
-@threaded_kernel("v", "u", "l", "pdf", "weight")
+@threaded_kernel("v", "u", "l", "pdf", "weight", align=BATCH)
 def sample_array(mats, m, v, u, l, pdf, weight):
     """Array driver of :func:`bsdf_shade`'s draw for material m (tests, plots): l, pdf, weight
     for each view direction v[k] and uniform pair u[k]."""
@@ -338,7 +338,7 @@ def sample_array(mats, m, v, u, l, pdf, weight):
                 weight[k0 + t, a] = f[DRAW, t, a]
 
 
-@threaded_kernel("v", "l", "pdf")
+@threaded_kernel("v", "l", "pdf", align=BATCH)
 def pdf_array(mats, m, v, l, pdf):
     """Array driver of :func:`bsdf_shade`'s density for material m."""
     n = v.shape[0]
