@@ -50,7 +50,7 @@ from .._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_thre
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
-from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, pick_light,
+from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, env_samples, pick_light,
                       sample_light)
 from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
                                stack_array, with_last_axis)
@@ -397,6 +397,9 @@ def _vertices(opts, geo, mats, lights, p):
     nlights = pmf.shape[0]
     shading = shadows = missed = 0
     escaped = il[ENTERS]  # tracing's work row, free until the shadow rays are traced
+    env_nee = nlights > 0 and env_light >= 0 and strategy != BSDF
+    if env_nee:
+        _env_samples(lights, p)
     for j in range(PACKET):
         # MAT -1: no shading batch (_shade), unless the path shades here
         il[NEE, j], il[END, j], il[MAT, j] = -1, 0, -1
@@ -458,23 +461,30 @@ def _vertices(opts, geo, mats, lights, p):
         if nlights > 0:
             l, ul = pick_light(pmf, fl[U + PICK, j])
             u2 = fl[U + ON_LIGHT, j]
-            if strategy != BSDF or (lights.ltype[l] != AREA and lights.ltype[l] != ENV):
+            if env_nee and l == env_light:
+                # drawn by _env_samples, in the rows the shadow ray's sample is kept in
+                lvx, lvy, lvz = q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j]
+                inv, dist, lpdf = 1.0, math.inf, fl[LPDF, j]
+                li[0], li[1], li[2] = fl[LI, j], fl[LI + 1, j], fl[LI + 2, j]
+            elif strategy != BSDF or (lights.ltype[l] != AREA and lights.ltype[l] != ENV):
                 lvx, lvy, lvz, inv, dist, lpdf = sample_light(lights, geo, l, qx, qy, qz, ul, u2,
                                                               li)
-                if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
-                        and lvx * nx + lvy * ny + lvz * nz > 0.0):
-                    ldx, ldy, ldz = lvx * inv, lvy * inv, lvz * inv
-                    k = il[NEE, j] = shadows
-                    shadows += 1
-                    sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
-                    sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
-                    sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
-                    # in world space until _frames turns it into the local frame
-                    q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j] = (
-                        ldx, ldy, ldz)
-                    for c in range(3):
-                        fl[LI + c, j] = li[c]
-                    fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
+            else:
+                lvx, lvy, lvz, inv, dist, lpdf = 0.0, 0.0, 0.0, 1.0, 0.0, 0.0  # none
+            if (lpdf > 0.0 and (li[0] > 0.0 or li[1] > 0.0 or li[2] > 0.0)
+                    and lvx * nx + lvy * ny + lvz * nz > 0.0):
+                ldx, ldy, ldz = lvx * inv, lvy * inv, lvz * inv
+                k = il[NEE, j] = shadows
+                shadows += 1
+                sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
+                sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
+                sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+                # in world space until _frames turns it into the local frame
+                q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j] = (
+                    ldx, ldy, ldz)
+                for c in range(3):
+                    fl[LI + c, j] = li[c]
+                fl[LPDF, j], fl[LPICK, j] = lpdf, pmf[l]
         shading += 1
     if missed > 0:
         _escaped(opts, lights, p, escaped, missed)
@@ -482,8 +492,37 @@ def _vertices(opts, geo, mats, lights, p):
     return shading, shadows
 
 
-#: Lanes per block of :func:`_escaped`.
+#: Lanes per block of :func:`_escaped` and :func:`_env_samples`.
 ESCAPED_BLOCK = 64
+
+
+@inline_kernel
+def _env_samples(lights, p):
+    """The environment light's next-event samples of the paths that will pick it (alive, their
+    ray hit, pick_light's choice the environment), drawn before the vertex loop, in blocks
+    (:func:`._lights.env_samples`): direction into the query set's rows where the vertex loop
+    leaves it (``q[PAIR, DRAWN]``), radiance into LI, density into LPDF. The lanes are listed
+    without branches, and the rescaled pick of each stored by its place in the list."""
+    fl, il, q = p.fl, p.il, p.q
+    e = lights.env_light
+    lanes = il[CHOSEN]  # shading's work row, free until the paths shade
+    u = stack_array(1, PACKET, 2)
+    n = 0
+    for j in range(PACKET):
+        l, ul = pick_light(lights.pmf, fl[U + PICK, j])
+        lanes[n] = j
+        u[0, n, 0], u[0, n, 1] = ul, fl[U + ON_LIGHT, j]
+        n += (il[ALIVE, j] != 0) & (il[HIT, j] >= 0) & (l == e)
+    s = stack_array(1, ESCAPED_BLOCK, 7)
+    for t0 in range(0, n, ESCAPED_BLOCK):
+        m = min(ESCAPED_BLOCK, n - t0)
+        env_samples(lights, e, u[:, t0:t0 + m], m, s)
+        for k in range(m):
+            j = lanes[t0 + k]
+            q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j] = (
+                s[0, k, 0], s[0, k, 1], s[0, k, 2])
+            fl[LI, j], fl[LI + 1, j], fl[LI + 2, j] = s[0, k, 3], s[0, k, 4], s[0, k, 5]
+            fl[LPDF, j] = s[0, k, 6]
 
 
 @inline_kernel

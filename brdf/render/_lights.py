@@ -285,6 +285,20 @@ def _sample_env(lights, e, u1, u2):
             lights.env_pmf[i, j] * (h * w) / (2.0 * math.pi * math.pi * sin_t))
 
 
+@inline_kernel
+def env_samples(lights, e, u, m, s):
+    """:func:`sample_light` of environment light e for m paths at once: the uniform pairs in
+    ``u[0, :m, 0:2]`` (the first rescaled by :func:`pick_light`), each sample's direction,
+    radiance and solid-angle density into ``s[0, :m, 0:7]`` (both work space on the caller's
+    stack). The draw depends on the numbers alone, not on the vertex, so a caller draws a
+    block of them in one loop without calls or stores to its own arrays, which LLVM may run
+    in SIMD lanes, where one at a time in the vertex loop its chain of dependent loads and
+    polynomials waited lane after lane."""
+    for k in range(m):
+        s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3], s[0, k, 4], s[0, k, 5], s[0, k, 6] = (
+            _sample_env(lights, e, u[0, k, 0], u[0, k, 1]))
+
+
 # --- area lights ------------------------------------------------------------------------------
 
 @inline_kernel
