@@ -45,6 +45,21 @@ FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 _OPTIONS = dict(fastmath=FASTMATH, error_model="numpy", no_cfunc_wrapper=True)
 
 
+def _target_features():
+    """The CPU features numba compiles kernels for, as numba chooses them:
+    ``NUMBA_CPU_FEATURES`` where set, else the host's."""
+    if numba.config.CPU_FEATURES is not None:
+        return numba.config.CPU_FEATURES.split(",")
+    return ll.get_host_cpu_features().flatten().split(",")
+
+
+#: Whether the kernels' target multiplies 64-bit integers in SIMD lanes (AVX-512DQ's
+#: ``vpmullq``; AVX2 has no such instruction): then the random streams' SplitMix64 hashes
+#: run in SIMD lanes too. Kernels read it as a constant when they compile, and numba's disk
+#: cache keeps their machine code per CPU and feature set.
+SIMD_INT64_PRODUCTS = "+avx512dq" in _target_features()
+
+
 def _private_copies(codegen_library):
     """Patch numba's ``CPUCodeLibrary`` so that the functions linked into a library that holds
     any of this package's code get internal linkage before it is optimised.

@@ -858,3 +858,17 @@ def test_a_call_is_typed_once_per_argument_types_and_as_numba_types_it(monkeypat
         with pytest.raises(errors.TypingError):
             copysign.get_call_type(context, (types.unicode_type, types.float64), {})
         assert len(orders) > before
+
+
+def test_the_target_features_are_numbas(monkeypatch):
+    """The features kernels are compiled for are NUMBA_CPU_FEATURES where set, else the
+    host's, as numba's own code generator takes them: SIMD_INT64_PRODUCTS follows them."""
+    import llvmlite.binding as ll
+    from brdf import _jit
+    assert _jit.SIMD_INT64_PRODUCTS == ("+avx512dq" in _jit._target_features())
+    monkeypatch.setattr(numba.config, "CPU_FEATURES", "+avx2,+avx512f,+avx512dq")
+    assert "+avx512dq" in _jit._target_features()
+    monkeypatch.setattr(numba.config, "CPU_FEATURES", "+avx2,-avx512dq")
+    assert "+avx512dq" not in _jit._target_features()
+    monkeypatch.setattr(numba.config, "CPU_FEATURES", None)
+    assert _jit._target_features() == ll.get_host_cpu_features().flatten().split(",")

@@ -45,8 +45,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from .._jit import (AS_LOWERED, OPTIMISED, allocating_kernel, fetch_add, in_threads,
-                    inline_kernel, kernel, nogil_kernel, ticks)
+from .._jit import (AS_LOWERED, OPTIMISED, SIMD_INT64_PRODUCTS, allocating_kernel, fetch_add,
+                    in_threads, inline_kernel, kernel, nogil_kernel, ticks)
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
                          plane_coordinates, trace_packet)
@@ -304,18 +304,20 @@ def _camera_ray(cam, opts, x, y, state, j):
 def _draw(fl, il, state):
     """The five numbers for its next vertex (rows U to U + 4) of every path whose ray hit,
     drawn from its stream (a path whose ray escaped, or that ends at the vertex, leaves some
-    unused: the next path in its lane starts a stream of its own). Where most lanes hit, for
-    every lane in one pass that runs in SIMD lanes; where a quarter or more miss, for the
-    lanes that hit, listed without branches, lane by lane. SIMD lanes multiply 64-bit integers
-    only with AVX-512, so a lane's numbers cost about as much either way, and the lanes that
-    missed are the saving (the white furnace, three in five: 11.0 against 6.7 ns a sample,
-    one thread)."""
+    unused: the next path in its lane starts a stream of its own). Where most lanes hit, or
+    where SIMD lanes multiply 64-bit integers (:data:`brdf._jit.SIMD_INT64_PRODUCTS`), for
+    every lane in one pass that runs in SIMD lanes; else, where a quarter or more miss, for
+    the lanes that hit, listed without branches, lane by lane. Without AVX-512 a lane's
+    numbers cost about as much either way, and the lanes that missed are the saving (the
+    white furnace, three in five: 11.0 against 6.7 ns a sample, one thread, AVX2); with it
+    every lane's in SIMD lanes cost less than the hits' one by one (the furnace's numbers
+    stage 3.2-4.2 against 6.3-6.7 CPU ns a sample, Zen 4)."""
     hits = il[CHOSEN]  # shading's work row, free until the paths shade
     n = 0
     for j in range(PACKET):
         hits[n] = j
         n += (il[ALIVE, j] != 0) & (il[HIT, j] >= 0)
-    if 4 * n >= 3 * PACKET:
+    if SIMD_INT64_PRODUCTS or 4 * n >= 3 * PACKET:
         for k in range(UNIFORMS):
             for j in range(PACKET):
                 fl[U + k, j] = _uniform(state, j)
