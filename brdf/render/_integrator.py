@@ -89,7 +89,7 @@ def _stream(seed, pixel, s):
 def _uniform(state, j):
     """Next number in [0, 1) (53 random bits) of the stream held in ``state[j]``."""
     state[j] += _GOLDEN
-    return float(_mix(state[j]) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return _number(state[j])
 
 
 # --- geometry at a hit --------------------------------------------------------------------------
@@ -287,9 +287,16 @@ Gradient = namedtuple("Gradient", "slots acc")
 
 
 @inline_kernel
-def _camera_ray(cam, opts, x, y, state, j):
-    jx = _uniform(state, j) if opts[JITTER] else 0.5
-    jy = _uniform(state, j) if opts[JITTER] else 0.5
+def _number(state):
+    """The number in [0, 1) that :func:`_uniform` draws from a stream whose state, advanced,
+    is ``state``: a pure function, for loops that keep the states in registers."""
+    return float(_mix(state) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@inline_kernel
+def _camera_ray(cam, x, y, jx, jy):
+    """The unit direction of the camera ray through (x + jx, y + jy) in pixel units (the
+    origin is the camera's, ``cam[:3]``)."""
     # the pixel's extent is packed: a division and two integer conversions less a path
     sx = (x + jx) * cam[12] - 1.0
     sy = 1.0 - (y + jy) * cam[13]
@@ -297,7 +304,7 @@ def _camera_ray(cam, opts, x, y, state, j):
     dy = cam[4] + sx * cam[7] + sy * cam[10]
     dz = cam[5] + sx * cam[8] + sy * cam[11]
     n = math.sqrt(dx * dx + dy * dy + dz * dz)
-    return cam[0], cam[1], cam[2], dx / n, dy / n, dz / n
+    return dx / n, dy / n, dz / n
 
 
 @kernel(linked=AS_LOWERED)
@@ -328,18 +335,62 @@ def _draw(fl, il, state):
             fl[U + k, j] = _uniform(state, j)
 
 
+#: Pairs per block of :func:`_launch`.
+LAUNCH_BLOCK = 64
+_LOW32 = np.uint64(0xFFFFFFFF)
+
+
 @inline_kernel
-def _launch(cam, opts, seed, x, y, sample, fl, il, state, j):
-    """Start the path of (pixel, sample) in lane j: its stream and camera ray."""
-    state[j] = _stream(seed, y * opts[W] + x, sample)
-    ox, oy, oz, dx, dy, dz = _camera_ray(cam, opts, x, y, state, j)
-    fl[O, j], fl[O + 1, j], fl[O + 2, j] = ox, oy, oz
-    fl[D, j], fl[D + 1, j], fl[D + 2, j] = dx, dy, dz
-    for c in range(3):
-        fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
-    fl[PREV, j] = 0.0
-    il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = 1, x, y, 0
-    il[SPECULAR, j], il[END, j] = 1, 0
+def _launch(cam, opts, seed, tile, s0, start, lanes, n, p):
+    """Start the paths of the tile's pairs ``start`` to ``start + n`` (pixel-major within a
+    sample, so a packet's camera rays are neighbours) in the lanes ``lanes[:n]``: each
+    pair's stream, jitter and camera ray, in blocks of LAUNCH_BLOCK in a loop without
+    branches or stores to the packet's arrays, which LLVM runs in SIMD lanes (the square
+    root and division of a ray's direction, and with 64-bit SIMD products its hashes, were
+    a chain that a lane's start waited on, lane after lane); then into the lanes."""
+    fl, il, state = p.fl, p.il, p.state
+    x0, y0, x1, y1 = tile
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    jitter = opts[JITTER] != 0
+    width = opts[W]
+    # the next pair's pixel and sample, stepped along (integer division costs tens of cycles)
+    k = start % npix
+    x, y, s = k % tw, k // tw, start // npix
+    b = stack_array(1, LAUNCH_BLOCK, 8)
+    for t0 in range(0, n, LAUNCH_BLOCK):
+        m = min(LAUNCH_BLOCK, n - t0)
+        for i in range(m):
+            b[0, i, 0], b[0, i, 1], b[0, i, 2] = x0 + x, y0 + y, s0 + s
+            x += 1
+            if x == tw:
+                x = 0
+                y += 1
+                if y * tw == npix:
+                    y = 0
+                    s += 1
+        for i in range(m):
+            px, py = int(b[0, i, 0]), int(b[0, i, 1])
+            st = _stream(seed, py * width + px, int(b[0, i, 2]))
+            jx = jy = 0.5
+            if jitter:
+                st += _GOLDEN
+                jx = _number(st)
+                st += _GOLDEN
+                jy = _number(st)
+            b[0, i, 3], b[0, i, 4], b[0, i, 5] = _camera_ray(cam, px, py, jx, jy)
+            # the stream's state in two exact halves (the work space holds float64)
+            b[0, i, 6], b[0, i, 7] = float(st >> np.uint64(32)), float(st & _LOW32)
+        for i in range(m):
+            j = lanes[t0 + i]
+            state[j] = (np.uint64(b[0, i, 6]) << np.uint64(32)) | np.uint64(b[0, i, 7])
+            fl[O, j], fl[O + 1, j], fl[O + 2, j] = cam[0], cam[1], cam[2]
+            fl[D, j], fl[D + 1, j], fl[D + 2, j] = b[0, i, 3], b[0, i, 4], b[0, i, 5]
+            for c in range(3):
+                fl[THR + c, j], fl[RAD + c, j] = 1.0, 0.0
+            fl[PREV, j] = 0.0
+            il[ALIVE, j], il[PIXEL_X, j], il[PIXEL_Y, j], il[DEPTH_, j] = (
+                1, int(b[0, i, 0]), int(b[0, i, 1]), 0)
+            il[SPECULAR, j], il[END, j] = 1, 0
 
 
 @kernel(linked=AS_LOWERED)
@@ -351,14 +402,10 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     sample, so a packet's camera rays are neighbours). Returns the next pair and the number of
     paths in flight."""
     fl, il = p.fl, p.il
-    x0, y0, x1, y1 = tile
-    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     mis = opts[STRATEGY] == MIS
     layers = opts[LAYERS] != 0
-    busy = 0
-    # the next pair's pixel and sample, stepped along (integer division costs tens of cycles)
-    k = start % npix
-    x, y, s = k % tw, k // tw, start // npix
+    free = il[LIST]  # shading's lists, free until the paths shade
+    nfree = 0
     for j in range(PACKET):
         if il[ALIVE, j] and not il[END, j]:
             if grad is not None:
@@ -368,20 +415,19 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
             if grad is not None:
                 _settle_derivatives(fl, il, p.dl, grad.acc, j)
             _settle(layers, fl, il, sums, j)
-        if not il[ALIVE, j] and start < total:
-            _launch(cam, opts, seed, x0 + x, y0 + y, s0 + s, fl, il, p.state, j)
-            if grad is not None:
+        free[nfree] = j
+        nfree += il[ALIVE, j] == 0
+    n = min(nfree, total - start)
+    if n > 0:
+        _launch(cam, opts, seed, tile, s0, start, free, n, p)
+        if grad is not None:
+            for t in range(n):
                 for c in range(3):
                     for k in range(p.dl.shape[2]):
-                        p.dl[0, c, k, j] = p.dl[1, c, k, j] = 0.0
-            start += 1
-            x += 1
-            if x == tw:
-                x = 0
-                y += 1
-                if y * tw == npix:
-                    y = 0
-                    s += 1
+                        p.dl[0, c, k, free[t]] = p.dl[1, c, k, free[t]] = 0.0
+        start += n
+    busy = 0
+    for j in range(PACKET):
         fl[T, j] = math.inf if il[ALIVE, j] else -1.0
         busy += il[ALIVE, j]
     return start, busy
