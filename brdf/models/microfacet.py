@@ -487,6 +487,25 @@ def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
 
 
 @inline_kernel
+def plain_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    """f over the lobe's colour for a lobe without a Fresnel term (:func:`rows_split_`): the
+    factor D G2 / (4 cos_i cos_o) of ``eval_``, 0 below the horizon, inlined into its caller,
+    whose loop over items then runs in SIMD lanes."""
+    return _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz)[0]
+
+
+@inline_kernel
+def pdf_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    """:func:`pdf_` with a select where it branches, inlined into its caller (see
+    :func:`plain_in_lanes`)."""
+    ax = q[nch]
+    ay = q[nch + 1]
+    # Heitz 2018, eq. 17, as pdf_
+    v = g1(dist, ax, ay, ix, iy, iz) * ndf(dist, ax, ay, ix + ox, iy + oy, iz + oz) / (4.0 * iz)
+    return v if iz > 0.0 and oz > 0.0 else 0.0
+
+
+@inline_kernel
 def sample_in_lanes(dist, q, nch, ix, iy, iz, u1, u2):
     """:func:`sample_`'s draw with selects where it branches, inlined into its caller: a loop
     over items that calls it runs in SIMD lanes for GGX (Beckmann's slope search branches).

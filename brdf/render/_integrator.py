@@ -433,7 +433,7 @@ def _advance(cam, opts, seed, tile, s0, total, start, p, sums, grad):
     return start, busy
 
 
-@kernel(linked=AS_LOWERED)
+@inline_kernel
 def _vertices(opts, geo, mats, lights, p):
     """Each path at the vertex its ray found: emission seen there (or the environment on a
     miss), the end of the path or its shading frame, parameters and next-event sample. The
