@@ -476,14 +476,20 @@ def grad_rows_(dist, q, nch, wi, wo, out, d):
     return True
 
 
-@kernel(linked=OPTIMISED)
-def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
-    if iz <= 0.0 or oz <= 0.0:
-        return 0.0
+@inline_kernel
+def _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    """The density of wo drawn from the visible normals, above the horizon on both sides."""
     ax = q[nch]
     ay = q[nch + 1]
     # D_wi(h) / (4 wo.h) with D_wi = G1 (wi.h) D / cos_i and wi.h = wo.h: Heitz 2018, eq. 17
     return g1(dist, ax, ay, ix, iy, iz) * ndf(dist, ax, ay, ix + ox, iy + oy, iz + oz) / (4.0 * iz)
+
+
+@kernel(linked=OPTIMISED)
+def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    if iz <= 0.0 or oz <= 0.0:
+        return 0.0
+    return _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz)
 
 
 @inline_kernel
@@ -498,10 +504,7 @@ def plain_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
 def pdf_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
     """:func:`pdf_` with a select where it branches, inlined into its caller (see
     :func:`plain_in_lanes`)."""
-    ax = q[nch]
-    ay = q[nch + 1]
-    # Heitz 2018, eq. 17, as pdf_
-    v = g1(dist, ax, ay, ix, iy, iz) * ndf(dist, ax, ay, ix + ox, iy + oy, iz + oz) / (4.0 * iz)
+    v = _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz)
     return v if iz > 0.0 and oz > 0.0 else 0.0
 
 
