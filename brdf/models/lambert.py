@@ -55,7 +55,13 @@ def sample_in_lanes(iz, u1, u2):
     where it could branch, inlined into its caller: a loop over items that calls it runs in
     SIMD lanes."""
     x, y, z = square_to_cosine_hemisphere(u1, u2)
-    return x, y, z, (z * INV_PI if (iz > 0.0 and z > 0.0) else 0.0)
+    return x, y, z, density_in_lanes(iz, z)
+
+
+@inline_kernel
+def density_in_lanes(iz, oz):
+    """:func:`pdf_`, the cosine-weighted density oz / pi, with a select where it branches."""
+    return oz * INV_PI if (iz > 0.0 and oz > 0.0) else 0.0
 
 
 @kernel(linked=OPTIMISED)

@@ -364,6 +364,12 @@ def sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2):
 
 @inline_kernel
 def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
+    """:func:`_lobe_at` with the lobe's roughness and masking read from its packed row."""
+    return _lobe_at(dist, q[nch], q[nch + 1], q[nch + 2] == 0.0, ix, iy, iz, ox, oy, oz)
+
+
+@inline_kernel
+def _lobe_at(dist, ax, ay, separable, ix, iy, iz, ox, oy, oz):
     """The channel-free factor D G2 / (4 cos_i cos_o) of f (0 unless both directions are above
     the horizon), its partial derivatives in alpha_x and alpha_y, and the unnormalised half
     vector; ``eval_`` and ``grad_`` both build f from it.
@@ -373,14 +379,11 @@ def _lobe(dist, q, nch, ix, iy, iz, ox, oy, oz):
     denominator, one division serves both (the divisions bounded the gradient pass). D and
     G2 / (4 cos_i cos_o), fractions too, make f with one division (two took half again as
     long in an evaluation of ``lambert + ggx``)."""
-    ax = q[nch]
-    ay = q[nch + 1]
     hx = ix + ox
     hy = iy + oy
     hz = iz + oz
     d, d_den, n_x, n_y, den = ndf_d(dist, ax, ay, hx, hy, hz)
-    v_den, m_x, m_y, den_v = visibility_d(dist, q[nch + 2] == 0.0, ax, ay, ix, iy, iz, ox, oy,
-                                          oz)
+    v_den, m_x, m_y, den_v = visibility_d(dist, separable, ax, ay, ix, iy, iz, ox, oy, oz)
     f = d / (d_den * v_den)
     u = f / (den * den_v)
     above = iz > 0.0 and oz > 0.0  # selects, not branches: keep the loops vectorised
@@ -477,10 +480,8 @@ def grad_rows_(dist, q, nch, wi, wo, out, d):
 
 
 @inline_kernel
-def _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz):
+def _visible_density(dist, ax, ay, ix, iy, iz, ox, oy, oz):
     """The density of wo drawn from the visible normals, above the horizon on both sides."""
-    ax = q[nch]
-    ay = q[nch + 1]
     # D_wi(h) / (4 wo.h) with D_wi = G1 (wi.h) D / cos_i and wi.h = wo.h: Heitz 2018, eq. 17
     return g1(dist, ax, ay, ix, iy, iz) * ndf(dist, ax, ay, ix + ox, iy + oy, iz + oz) / (4.0 * iz)
 
@@ -489,7 +490,7 @@ def _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz):
 def pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz):
     if iz <= 0.0 or oz <= 0.0:
         return 0.0
-    return _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz)
+    return _visible_density(dist, q[nch], q[nch + 1], ix, iy, iz, ox, oy, oz)
 
 
 @inline_kernel
@@ -504,8 +505,33 @@ def plain_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
 def pdf_in_lanes(dist, q, nch, ix, iy, iz, ox, oy, oz):
     """:func:`pdf_` with a select where it branches, inlined into its caller (see
     :func:`plain_in_lanes`)."""
-    v = _visible_density(dist, q, nch, ix, iy, iz, ox, oy, oz)
+    return density_in_lanes(dist, q[nch], q[nch + 1], ix, iy, iz, ox, oy, oz)
+
+
+@inline_kernel
+def factor_in_lanes(dist, ax, ay, separable, ix, iy, iz, ox, oy, oz):
+    """:func:`plain_in_lanes` of a lobe of roughness (ax, ay) and masking ``separable`` (else
+    height-correlated), given apart from a packed row: for callers whose items each have a
+    lobe of their own (the renderer's blocks of paths)."""
+    return _lobe_at(dist, ax, ay, separable, ix, iy, iz, ox, oy, oz)[0]
+
+
+@inline_kernel
+def density_in_lanes(dist, ax, ay, ix, iy, iz, ox, oy, oz):
+    """:func:`pdf_in_lanes` of a lobe of roughness (ax, ay) given apart (see
+    :func:`factor_in_lanes`)."""
+    v = _visible_density(dist, ax, ay, ix, iy, iz, ox, oy, oz)
     return v if iz > 0.0 and oz > 0.0 else 0.0
+
+
+@inline_kernel
+def draw_in_lanes(dist, ax, ay, ix, iy, iz, u1, u2):
+    """wo drawn given wi from the visible normals of a lobe of roughness (ax, ay) given apart
+    (see :func:`factor_in_lanes`), and its density: :func:`sample_in_lanes` without its
+    horizon test (the caller selects), with selects where :func:`pdf_` branches."""
+    hx, hy, hz = sample_visible_normal(dist, ax, ay, ix, iy, iz, u1, u2)
+    ox, oy, oz = reflect_about(ix, iy, iz, hx, hy, hz)
+    return ox, oy, oz, density_in_lanes(dist, ax, ay, ix, iy, iz, ox, oy, oz)
 
 
 @inline_kernel
