@@ -178,7 +178,7 @@ def env_lookup(lights, e, dx, dy, dz):
     d (:func:`_env_pixel`) over its solid angle, p(u, v) / (2 pi^2 sin theta) (PBR 3rd ed.
     14.2.4, eq. 14.9's change of variables)."""
     f, env = lights.lf[e], lights.env
-    if f[0] == 0.0:
+    if env_constant(lights, e):
         return f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
     h, w = env.shape[0], env.shape[1]
     x, y, z = _env_local(f, dx, dy, dz)
@@ -248,6 +248,23 @@ _BELOW_ONE = 1.0 - 2.0 ** -53
 
 
 @inline_kernel
+def env_constant(lights, e):
+    """Whether environment light e is constant (no map): :func:`env_lookup` gives the same
+    radiance and density in every direction."""
+    return lights.lf[e, 0] == 0.0
+
+
+@inline_kernel
+def _sample_constant(f, u1, u2):
+    """:func:`_sample_env` of a constant environment (light row ``f``): a direction uniform on
+    the sphere."""
+    z = 1.0 - 2.0 * u1
+    r = math.sqrt(max(0.0, 1.0 - z * z))
+    sin_phi, cos_phi = sampling.sincos_turn(u2)
+    return r * cos_phi, r * sin_phi, z, f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
+
+
+@inline_kernel
 def _sample_env(lights, e, u1, u2):
     """World direction drawn from environment light e, its radiance and its solid-angle
     density (by :func:`env_lookup`'s formulas: the map bilinear, the density the drawn
@@ -255,11 +272,8 @@ def _sample_env(lights, e, u1, u2):
     probabilities with u1, the point within it from the rest of u1 (in theta) and u2 (in
     phi)."""
     f, env = lights.lf[e], lights.env
-    if f[0] == 0.0:
-        z = 1.0 - 2.0 * u1
-        r = math.sqrt(max(0.0, 1.0 - z * z))
-        sin_phi, cos_phi = sampling.sincos_turn(u2)
-        return r * cos_phi, r * sin_phi, z, f[3], f[4], f[5], 1.0 / (4.0 * math.pi)
+    if env_constant(lights, e):
+        return _sample_constant(f, u1, u2)
     h, w = env.shape[0], env.shape[1]
     k, fu = _alias_pick(lights.env_prob, lights.env_alias, u1)
     # row and column of pixel k (row-major) without an integer division: k + 1/2 is never
@@ -293,7 +307,14 @@ def env_samples(lights, e, u, m, s):
     stack). The draw depends on the numbers alone, not on the vertex, so a caller draws a
     block of them in one loop without calls or stores to its own arrays, which LLVM may run
     in SIMD lanes, where one at a time in the vertex loop its chain of dependent loads and
-    polynomials waited lane after lane."""
+    polynomials waited lane after lane. A constant environment's draws have a loop of their
+    own, without the map's branch."""
+    if env_constant(lights, e):
+        f = lights.lf[e]
+        for k in range(m):
+            (s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3], s[0, k, 4], s[0, k, 5],
+             s[0, k, 6]) = _sample_constant(f, u[0, k, 0], u[0, k, 1])
+        return
     for k in range(m):
         s[0, k, 0], s[0, k, 1], s[0, k, 2], s[0, k, 3], s[0, k, 4], s[0, k, 5], s[0, k, 6] = (
             _sample_env(lights, e, u[0, k, 0], u[0, k, 1]))
@@ -373,9 +394,15 @@ def pick_light(pmf, u):
     n = pmf.shape[0]
     for l in range(n):
         if u < acc + pmf[l] or l == n - 1:
-            return l, min(max((u - acc) / pmf[l], 0.0), 0.9999999999999999)
+            return l, rescaled_pick(u, acc, pmf[l])
         acc += pmf[l]
     return n - 1, u
+
+
+@inline_kernel
+def rescaled_pick(u, acc, p):
+    """``u`` rescaled within the share [acc, acc + p) of the light it picked, kept in [0, 1)."""
+    return min(max((u - acc) / p, 0.0), 0.9999999999999999)
 
 
 @kernel(linked=OPTIMISED)
