@@ -99,12 +99,15 @@ def _tables():
 
 
 def _render():
-    """The path tracer with a parametric and a measured material, and the Cornell box."""
+    """The path tracer with a parametric and a measured material, the Cornell box, and the
+    white furnace (traced in blocks)."""
     import brdf
     from .render import builtin, render
     for material in (brdf.parse(_SPEC), _merl_table()):
         render(builtin("sphere", material), spp=1, size=(4, 4), seed=0)
     render(builtin("cornell"), spp=1, size=(4, 4), seed=0)
+    render(builtin("furnace", brdf.parse("lambert + ggx(alpha=0.3)")), spp=1, size=(4, 4),
+           seed=0)
 
 
 def _render_derivatives():

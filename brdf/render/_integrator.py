@@ -14,6 +14,11 @@ evaluates f and its gradient on that material, :func:`_carry` and :func:`_emitte
 product rule, and :func:`_settle_derivatives` adds them to the pixel's sums. Without them
 ``grad`` is None, whose type makes numba leave those passes out of the compiled kernels.
 
+Scenes of a few spheres and quads with Lambertian and GGX lobes lit by the environment alone
+are traced another way, by :func:`trace_blocks` (see its section below): each block of BLOCK
+paths whole, vertex by vertex, every pass a loop over the block's lanes without branches,
+which LLVM runs in SIMD lanes. Its estimator is the packet's, to rounding.
+
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
 bit whatever the number of threads.
@@ -34,10 +39,12 @@ what a stream's numbers are spent on) moves the bits; its commit says why.
 How to check: ``tests/render/test_render_digest.py`` renders a small scene with one thread and
 two and compares the bytes with each other, with a digest stored for this numba, llvmlite and
 machine, and with a committed reference image (to rounding, on a compiler without a stored
-digest). The kernels are compiled with fast-math contraction and reassociation, and a cold
-compile may round some lobes' formulas differently from kernels loaded from the cache (seen
-with GGX and measured tables): compare renders of a change with all kernels cached on both
-sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3 (``--all``).
+digest); ``tests/render/test_blocks.py`` renders the scenes the blocks cover both ways and
+compares them to rounding. The kernels are compiled with fast-math contraction and
+reassociation, and a cold compile may round some lobes' formulas differently from kernels loaded
+from the cache (seen with GGX and measured tables): compare renders of a change with all kernels
+cached on both sides. ``benchmarks/bench_render.py`` times ten scenes against Mitsuba 3
+(``--all``).
 """
 
 import math
@@ -49,12 +56,15 @@ from .._jit import (AS_LOWERED, OPTIMISED, SIMD_INT64_PRODUCTS, allocating_kerne
                     in_threads, inline_kernel, kernel, nogil_kernel, ticks)
 from .. import sampling
 from ._intersect import (DIRECTION, LANES, ORIGIN, PACKET, QUAD, RAY_ROWS, SPHERE, STACK,
-                         plane_coordinates, trace_packet)
-from ._lights import (AREA, ENV, area_pdf, emits_towards, env_lookup, env_samples, pick_light,
-                      sample_light)
-from ..models._kernels import (DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS, mixture_gradient,
-                               stack_array, with_last_axis)
-from ._materials import B0, B1, K0, K1, O0, O1, SHARE, bsdf_shade, material_params
+                         hit_sphere, plane_coordinates, plane_distance, trace_packet)
+from ._lights import (AREA, ENV, area_pdf, emits_towards, env_constant, env_lookup, env_samples,
+                      pick_light, rescaled_pick, sample_light)
+from ..models import _kinds, fresnel, lambert, microfacet
+from ..models._kernels import (BELOW_ONE, DRAW, DRAWN, GIVEN, PAIR, PDF, QUERY_ROWS,
+                               mixture_gradient, stack_array, with_last_axis)
+from ..models.microfacet import GGX
+from ._materials import (B0, B1, K0, K1, MODEL, O0, O1, P0, P1, SHARE, TYPE, bsdf_shade,
+                         material_params)
 from .stats import (CLOCK_ROWS, CLOCK_SHADED, CLOCK_SHADOWS, CLOCK_STEPS, CLOCK_TOTAL, NUMBERS,
                     PATHS, RAYS, SHADING, SHADOW_RAYS, VERTICES)
 
@@ -993,6 +1003,442 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
             _count(clock, spent, shading, shadows)
 
 
+# --- paths whole in blocks of lanes -------------------------------------------------------------
+#
+# Scenes of a few spheres and quads with Lambertian and GGX lobes, lit by the environment alone
+# (:func:`block_scene`), are traced by :func:`trace_blocks` instead of the packet's passes: a
+# block of BLOCK paths advances vertex by vertex, each step a few loops over the block's lanes
+# without branches or calls, its state in work space on the stack (which LLVM knows no other
+# array to alias), every primitive tested against every lane's ray in turn. LLVM runs those
+# loops in SIMD lanes, where the packet's passes branch per lane on the kind of primitive,
+# light and lobe. The estimator is the packet's: the same streams and numbers, the same light
+# sample, lobe choice, MIS weights, Russian roulette and ends of paths; only the order of some
+# floating-point operations differs, so an image differs from the packet's by rounding and by
+# the paths it moves (a different rounding can turn a ray's hit into a miss).
+
+#: Paths per block.
+BLOCK = 64
+#: Primitives at most in a scene traced in blocks: each is tested against every ray, where the
+#: packet's tree skips most of them.
+BLOCK_PRIMS = 16
+#: Whether :func:`render_pass` traces the scenes that :func:`block_scene` covers in blocks
+#: (else in the packet, as every other scene; tests compare the two).
+use_blocks = True
+#: Columns of the block tracer's primitive table: whether it is a sphere, its centre and
+#: radius (a sphere's), its normal and tangent (a quad's), its material's row of the lobes.
+PT_SPHERE, PT_C, PT_R, PT_N, PT_T, PT_MAT, PRIM_COLS = 0, 1, 4, 5, 8, 11, 12
+#: Columns of the block tracer's lobe table (:func:`block_scene`): whether the Lambertian lobe
+#: comes first in the material's mixture, its albedo, GGX's ks, roughness and masking (1:
+#: separable), whether the material is traced at all (0: no material, the path ends there).
+LOBE_FIRST, KD, KS, ALPHA_X, ALPHA_Y, SEPARABLE, SHADED, LOBE_COLS = 0, 1, 4, 7, 8, 9, 10, 11
+#: rows of a block's work space (stack_array(1, BLOCK, BLOCK_ROWS))
+BLOCK_LAYOUT = (
+    ("BO", 3, "the ray's origin"),
+    ("BD", 3, "its direction"),
+    ("BT", 1, "its hit distance (inf: none)"),
+    ("BHIT", 1, "the primitive it hit"),
+    ("BTHR", 3, "the path's throughput"),
+    ("BRAD", 3, "its radiance"),
+    ("BPREV", 1, "the density of its last bounce (inf: the camera's ray)"),
+    ("BLIVE", 1, "1 while the path is in flight"),
+    ("BPX", 2, "its pixel (x, y)"),
+    ("BU", UNIFORMS, "the vertex's uniform numbers"),
+    ("BN", 3, "the vertex's normal, on the ray's side"),
+    ("BQ", 3, "the next rays' origin"),
+    ("BL", 3, "the light sample's direction (world)"),
+    ("BLI", 3, "its radiance, then what it adds to the path's if the shadow ray gets through"),
+    ("BLEN", 1, "its density, then the shadow ray's length (inf; -1: none, or occluded)"),
+    ("BW", 3, "the BSDF sample's weight f cos / pdf"),
+    ("BSHADED", 1, "1 where the path shaded its vertex"),
+)
+((BO, BD, BT, BHIT, BTHR, BRAD, BPREV, BLIVE, BPX, BU, BN, BQ, BL, BLI, BLEN, BW, BSHADED),
+ BLOCK_ROWS) = _offsets(BLOCK_LAYOUT)
+
+
+def block_scene(geo, mats, lights, opts):
+    """The tables :func:`trace_blocks` takes, ``(lobes, prims)``, or None where the blocks do
+    not cover the render: a scene of 1 to BLOCK_PRIMS spheres and quads (no triangles,
+    nothing emissive), the environment its only light, MIS, and every material a Lambertian
+    lobe, a GGX lobe without a Fresnel term, or one of each, without textures. ``lobes`` has
+    a row per material (LOBE_COLS) and a last one of zeros for shapes without one; ``prims``
+    a row per primitive (PRIM_COLS)."""
+    prim = geo.prim
+    if (not use_blocks or geo.tri.shape[0] or not 0 < prim.shape[0] <= BLOCK_PRIMS
+            or np.any(prim[:, 3] >= 0) or lights.pmf.shape[0] != 1 or lights.env_light != 0
+            or opts[STRATEGY] != MIS):
+        return None
+    mint = mats.mint
+    lobes = np.zeros((mint.shape[0] + 1, LOBE_COLS))
+    for m in range(mint.shape[0]):
+        if mint[m, TYPE] != MODEL or mint[m, B1] > mint[m, B0]:
+            return None
+        kinds = [int(k) for k in mats.kinds[mint[m, K0]:mint[m, K1]]]
+        offs = mats.offs[mint[m, O0]:mint[m, O1]]
+        params = mats.params[mint[m, P0]:mint[m, P1]]
+        if sorted(kinds) not in ([_kinds.LAMBERT], [_kinds.GGX],
+                                 sorted([_kinds.LAMBERT, _kinds.GGX])):
+            return None
+        row = lobes[m]
+        row[LOBE_FIRST] = float(kinds[0] == _kinds.LAMBERT)
+        row[ALPHA_X] = row[ALPHA_Y] = 1.0  # a lobe of ks 0 is never picked nor counted
+        row[SEPARABLE] = row[SHADED] = 1.0
+        for l, kind in enumerate(kinds):
+            q = params[offs[l]:offs[l + 1]]
+            if kind == _kinds.LAMBERT:
+                row[KD:KD + 3] = q[:3]
+            elif q[6] != fresnel.NONE:  # the layout of brdf.models.microfacet, 3 channels
+                return None
+            else:
+                row[KS:KS + 3], row[ALPHA_X], row[ALPHA_Y] = q[:3], q[3], q[4]
+                row[SEPARABLE] = float(q[5] == 0.0)
+    prims = np.zeros((prim.shape[0], PRIM_COLS))
+    for i, (kind, j, m, _) in enumerate(prim):
+        if kind == SPHERE:
+            prims[i, PT_SPHERE] = 1.0
+            prims[i, PT_C:PT_C + 3], prims[i, PT_R] = geo.sph[j, :3], geo.sph[j, 3]
+        else:
+            prims[i, PT_R] = 1.0  # a quad's lanes divide by it too, then select its normal
+            prims[i, PT_N:PT_N + 3], prims[i, PT_T:PT_T + 3] = geo.quad[j, 3], geo.quad[j, 6]
+        prims[i, PT_MAT] = m if m >= 0 else mint.shape[0]
+    return lobes, prims
+
+
+@inline_kernel
+def _block_hits(geo, s, m, shadow):
+    """Each lane's ray (rows BO, BD) against every primitive: the nearest hit's distance and
+    primitive into rows BT and BHIT; for ``shadow`` rays (from BQ along BL, of length BLEN),
+    BLEN set to -1 where one is hit short of the light. A loop over the lanes per primitive."""
+    o, d = (BQ, BL) if shadow else (BO, BD)
+    if not shadow:
+        for k in range(m):
+            s[0, k, BT], s[0, k, BHIT] = math.inf, -1.0
+    prim = geo.prim
+    for i in range(prim.shape[0]):
+        j = prim[i, 1]
+        if prim[i, 0] == SPHERE:
+            c = (geo.sph[j, 0], geo.sph[j, 1], geo.sph[j, 2], geo.sph[j, 3])
+            for k in range(m):
+                tmax = s[0, k, BLEN] if shadow else s[0, k, BT]
+                t = hit_sphere(c, s[0, k, o], s[0, k, o + 1], s[0, k, o + 2], s[0, k, d],
+                               s[0, k, d + 1], s[0, k, d + 2], tmax)
+                if shadow:
+                    s[0, k, BLEN] = -1.0 if t > 0.0 else s[0, k, BLEN]
+                else:
+                    s[0, k, BT] = t if t > 0.0 else s[0, k, BT]
+                    s[0, k, BHIT] = float(i) if t > 0.0 else s[0, k, BHIT]
+        else:
+            g = geo.quad[j]
+            plane = ((g[3, 0], g[3, 1], g[3, 2]), (g[0, 0], g[0, 1], g[0, 2]),
+                     (g[4, 0], g[4, 1], g[4, 2]), (g[5, 0], g[5, 1], g[5, 2]), 0.0)
+            for k in range(m):
+                tmax = s[0, k, BLEN] if shadow else s[0, k, BT]
+                t = plane_distance(plane, s[0, k, o], s[0, k, o + 1], s[0, k, o + 2],
+                                   s[0, k, d], s[0, k, d + 1], s[0, k, d + 2], tmax)
+                if shadow:
+                    s[0, k, BLEN] = -1.0 if t < math.inf else s[0, k, BLEN]
+                else:
+                    s[0, k, BT] = t if t < math.inf else s[0, k, BT]
+                    s[0, k, BHIT] = float(i) if t < math.inf else s[0, k, BHIT]
+
+
+@inline_kernel
+def _block_launch(cam, opts, seed, tile, s0, start, m, s, state):
+    """Start the block's paths: the tile's pairs ``start`` to ``start + m`` (pixel-major within
+    a sample, as :func:`_launch`), each with its stream (into ``state``), jitter and camera
+    ray. The pairs' pixels and samples are stepped along first (integer division costs tens of
+    cycles), then the rest runs in a loop without branches."""
+    x0, y0, x1, y1 = tile
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    jitter = opts[JITTER] != 0
+    width = opts[W]
+    k0 = start % npix
+    x, y, smp = k0 % tw, k0 // tw, start // npix
+    for k in range(m):
+        s[0, k, BPX], s[0, k, BPX + 1], s[0, k, BT] = x0 + x, y0 + y, s0 + smp
+        x += 1
+        if x == tw:
+            x = 0
+            y += 1
+            if y * tw == npix:
+                y = 0
+                smp += 1
+    for k in range(m):
+        px, py = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
+        st = _stream(seed, py * width + px, int(s[0, k, BT]))
+        a = st + _GOLDEN
+        b = a + _GOLDEN
+        jx = _number(a) if jitter else 0.5
+        jy = _number(b) if jitter else 0.5
+        state[k] = b if jitter else st
+        s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = _camera_ray(cam, px, py, jx, jy)
+        s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = cam[0], cam[1], cam[2]
+        s[0, k, BPREV] = math.inf  # the camera's ray: no MIS on what it sees
+        s[0, k, BLIVE] = 1.0
+        for c in range(3):
+            s[0, k, BTHR + c], s[0, k, BRAD + c] = 1.0, 0.0
+
+
+@inline_kernel
+def _block_seen(s, k, le0, le1, le2, epdf, pick):
+    """Lane k's share of :func:`_block_escaped`, with the environment's radiance and density
+    along its ray; whether its ray hit."""
+    live = s[0, k, BLIVE] > 0.0
+    hit = s[0, k, BT] < math.inf
+    w = _power(s[0, k, BPREV], pick * epdf)
+    seen = live & (not hit)
+    s[0, k, BRAD] += s[0, k, BTHR] * w * le0 if seen else 0.0
+    s[0, k, BRAD + 1] += s[0, k, BTHR + 1] * w * le1 if seen else 0.0
+    s[0, k, BRAD + 2] += s[0, k, BTHR + 2] * w * le2 if seen else 0.0
+    return live & hit
+
+
+@inline_kernel
+def _block_escaped(lights, s, m):
+    """The environment seen by the paths whose rays escaped, weighed against next-event
+    estimation (see :func:`_escaped`), added to their radiance; returns the number of paths
+    whose rays hit. A constant environment is looked up once, outside the loop over the lanes:
+    the map's lookups in it kept it scalar."""
+    e = lights.env_light
+    pick = lights.pmf[e]
+    hits = 0
+    if env_constant(lights, e):
+        le0, le1, le2, epdf = env_lookup(lights, e, 0.0, 0.0, 1.0)
+        for k in range(m):
+            hits += _block_seen(s, k, le0, le1, le2, epdf, pick)
+        return hits
+    # a map: looked up along the escaped rays only, listed without branches
+    lanes = stack_array(1, BLOCK, 1)
+    looked = stack_array(1, BLOCK, 4)
+    n = 0
+    for k in range(m):
+        lanes[0, n, 0] = k
+        n += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] == math.inf)
+    for i in range(n):
+        k = int(lanes[0, i, 0])
+        looked[0, i, 0], looked[0, i, 1], looked[0, i, 2], looked[0, i, 3] = env_lookup(
+            lights, e, s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2])
+    for i in range(n):
+        _block_seen(s, int(lanes[0, i, 0]), looked[0, i, 0], looked[0, i, 1], looked[0, i, 2],
+                    looked[0, i, 3], pick)
+    for k in range(m):
+        hits += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
+    return hits
+
+
+@inline_kernel
+def _block_light_samples(lights, s, m):
+    """The environment's next-event sample (:func:`._lights.env_samples`) of the paths whose
+    rays hit, into rows BL (direction), BLI (radiance) and BLEN (density): the one light,
+    picked with probability pmf[e] (:func:`._lights.pick_light`'s rescaling of u). A constant
+    environment's draws cost less than listing the lanes: every lane draws one."""
+    e = lights.env_light
+    p0 = lights.pmf[e]
+    lanes = stack_array(1, BLOCK, 1)
+    u = stack_array(1, BLOCK, 2)
+    drawn = stack_array(1, BLOCK, 7)
+    n = 0
+    every = env_constant(lights, e)
+    for k in range(m):
+        lanes[0, n, 0] = k
+        u[0, n, 0] = rescaled_pick(s[0, k, BU + PICK], 0.0, p0)
+        u[0, n, 1] = s[0, k, BU + ON_LIGHT]
+        n += every | ((s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf))
+    env_samples(lights, e, u, n, drawn)
+    for i in range(n):
+        k = int(lanes[0, i, 0])
+        for c in range(3):
+            s[0, k, BL + c], s[0, k, BLI + c] = drawn[0, i, c], drawn[0, i, 3 + c]
+        s[0, k, BLEN] = drawn[0, i, 6]
+
+
+@inline_kernel
+def _block_vertex(opts, lights, lobes, pt, depth, s, m):
+    """Every lane's vertex at once (see :func:`_vertices`, :func:`_shade`, :func:`_bounce`):
+    at a hit the frame, the next-event sample (drawn beforehand into BL, BLI, BLEN), the lobe
+    picked, the BSDF sample and the MIS weights; the light's share (kept in BLI until the
+    shadow ray is traced); the bounce, or the path's end. Every lane computes every lobe, and
+    selects. Returns the number of paths that go on."""
+    e = lights.env_light
+    pick = lights.pmf[e]
+    last = depth + 1 >= opts[DEPTH]
+    roulette = depth + 1 >= opts[RR]
+    going = 0
+    for k in range(m):
+        live = s[0, k, BLIVE] > 0.0
+        t = s[0, k, BT]
+        hit = t < math.inf
+        dx, dy, dz = s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2]
+        # the surface (a miss's numbers are computed at primitive 0 and dropped)
+        i = int(s[0, k, BHIT]) if hit else 0
+        tt = t if hit else 0.0
+        px = s[0, k, BO] + tt * dx
+        py = s[0, k, BO + 1] + tt * dy
+        pz = s[0, k, BO + 2] + tt * dz
+        sphere = pt[i, PT_SPHERE] != 0.0
+        r = pt[i, PT_R]
+        nx = (px - pt[i, PT_C]) / r if sphere else pt[i, PT_N]
+        ny = (py - pt[i, PT_C + 1]) / r if sphere else pt[i, PT_N + 1]
+        nz = (pz - pt[i, PT_C + 2]) / r if sphere else pt[i, PT_N + 2]
+        tx = -ny if sphere else pt[i, PT_T]
+        ty = nx if sphere else pt[i, PT_T + 1]
+        tz = 0.0 if sphere else pt[i, PT_T + 2]
+        mat = int(pt[i, PT_MAT])
+        shaded = live & hit & (not last) & (lobes[mat, SHADED] != 0.0)
+        # two-sided: the normal on the side the ray arrives from
+        side = -1.0 if nx * dx + ny * dy + nz * dz > 0.0 else 1.0
+        nx, ny, nz = side * nx, side * ny, side * nz
+        ax, ay, az, bx, by, bz = _frame(nx, ny, nz, tx, ty, tz, not sphere)
+        vx = -(dx * ax + dy * ay + dz * az)
+        vy = -(dx * bx + dy * by + dz * bz)
+        vz = -(dx * nx + dy * ny + dz * nz)
+        qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
+        # the light sample, in the local frame
+        lvx, lvy, lvz = s[0, k, BL], s[0, k, BL + 1], s[0, k, BL + 2]
+        lpdf = s[0, k, BLEN]
+        li0, li1, li2 = s[0, k, BLI], s[0, k, BLI + 1], s[0, k, BLI + 2]
+        cast = (shaded & (lpdf > 0.0) & ((li0 > 0.0) | (li1 > 0.0) | (li2 > 0.0))
+                & (lvx * nx + lvy * ny + lvz * nz > 0.0))
+        lx = lvx * ax + lvy * ay + lvz * az
+        ly = lvx * bx + lvy * by + lvz * bz
+        lz = lvx * nx + lvy * ny + lvz * nz
+        # the lobes: Lambert's and GGX's parameters, the probability of picking each (their
+        # hints, lambert.hint_ and microfacet.hint_ without a Fresnel term: the albedo's and
+        # ks's channel means where v is above the surface; mixture_selection)
+        row = lobes[mat]
+        kd0, kd1, kd2, ks0, ks1, ks2 = row[KD], row[KD + 1], row[KD + 2], row[KS], row[KS + 1], \
+            row[KS + 2]
+        alx, aly, sep = row[ALPHA_X], row[ALPHA_Y], row[SEPARABLE] != 0.0
+        hd = (kd0 + kd1 + kd2) / 3.0 if vz > 0.0 else 0.0
+        hs = (ks0 + ks1 + ks2) / 3.0 if vz > 0.0 else 0.0
+        total = max(hd, 0.0) + max(hs, 0.0)
+        sel_d = max(hd, 0.0) / total if total > 0.0 else 0.5
+        sel_s = max(hs, 0.0) / total if total > 0.0 else 0.5
+        # f(l, v) and the density of l given v towards the light
+        fd = lambert.per_albedo(lz, vz)
+        fs = microfacet.factor_in_lanes(GGX, alx, aly, sep, lx, ly, lz, vx, vy, vz)
+        bpdf = (sel_d * lambert.density_in_lanes(vz, lz)
+                + sel_s * microfacet.density_in_lanes(GGX, alx, aly, vx, vy, vz, lx, ly, lz))
+        scale = _power(pick * lpdf, bpdf) * max(lz, 0.0) / (pick * lpdf) if cast else 0.0
+        s[0, k, BLI] = s[0, k, BTHR] * (kd0 * fd + ks0 * fs) * li0 * scale
+        s[0, k, BLI + 1] = s[0, k, BTHR + 1] * (kd1 * fd + ks1 * fs) * li1 * scale
+        s[0, k, BLI + 2] = s[0, k, BTHR + 2] * (kd2 * fd + ks2 * fs) * li2 * scale
+        s[0, k, BLEN] = math.inf if cast else -1.0
+        s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2] = qx, qy, qz
+        # the BSDF sample: a lobe by u1 (then u1 rescaled within its share), drawn with (u1, u2)
+        first = row[LOBE_FIRST] != 0.0
+        sel_0 = sel_d if first else sel_s
+        u = s[0, k, BU + BSDF_U1]
+        past = u >= sel_0
+        wl = (sel_s if first else sel_d) if past else sel_0  # the picked lobe's probability
+        u = min(max((u - (sel_0 if past else 0.0)) / wl, 0.0), BELOW_ONE) if wl > 0.0 else u
+        diffuse = past != first
+        u2 = s[0, k, BU + BSDF_U2]
+        cx, cy, cz, cpdf = lambert.sample_in_lanes(vz, u, u2)
+        gx, gy, gz, gpdf = microfacet.draw_in_lanes(GGX, alx, aly, vx, vy, vz, u, u2)
+        ox = cx if diffuse else gx
+        oy = cy if diffuse else gy
+        oz = cz if diffuse else gz
+        drawn = (cpdf if diffuse else gpdf) > 0.0
+        fd = lambert.per_albedo(oz, vz)
+        fs = microfacet.factor_in_lanes(GGX, alx, aly, sep, ox, oy, oz, vx, vy, vz)
+        pdf = (sel_d * lambert.density_in_lanes(vz, oz)
+               + sel_s * microfacet.density_in_lanes(GGX, alx, aly, vx, vy, vz, ox, oy, oz))
+        ok = shaded & drawn & (wl > 0.0) & (pdf > 0.0)
+        c = oz / pdf if ok else 0.0
+        w0, w1, w2 = (kd0 * fd + ks0 * fs) * c, (kd1 * fd + ks1 * fs) * c, (kd2 * fd + ks2 * fs) * c
+        s[0, k, BW], s[0, k, BW + 1], s[0, k, BW + 2] = w0, w1, w2
+        s[0, k, BN], s[0, k, BN + 1], s[0, k, BN + 2] = nx, ny, nz
+        s[0, k, BSHADED] = 1.0 if shaded else 0.0
+        # the bounce: below the geometric surface the shading normal would leak light
+        wx = ox * ax + oy * bx + oz * nx
+        wy = ox * ay + oy * by + oz * ny
+        wz = ox * az + oy * bz + oz * nz
+        ok = ok & (wx * nx + wy * ny + wz * nz > 0.0)
+        t0, t1, t2 = s[0, k, BTHR] * w0, s[0, k, BTHR + 1] * w1, s[0, k, BTHR + 2] * w2
+        keep = min(max(t0, max(t1, t2)), 0.95)
+        ok = ok & ((not roulette) | (s[0, k, BU + ROULETTE] < keep))
+        d = keep if roulette else 1.0
+        s[0, k, BTHR], s[0, k, BTHR + 1], s[0, k, BTHR + 2] = t0 / d, t1 / d, t2 / d
+        s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = qx, qy, qz
+        s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = wx, wy, wz
+        s[0, k, BPREV] = pdf
+        s[0, k, BLIVE] = 1.0 if ok else 0.0
+        going += ok
+    return going
+
+
+@inline_kernel
+def _block(cam, opts, geo, lights, lobes, pt, seed, tile, s0, start, m, sums, state):
+    """Trace the tile's pairs ``start`` to ``start + m`` (m <= BLOCK) whole, vertex by vertex,
+    and add them to their pixels' running sums (see :func:`_settle`)."""
+    s = stack_array(1, BLOCK, BLOCK_ROWS)
+    layers = opts[LAYERS] != 0
+    _block_launch(cam, opts, seed, tile, s0, start, m, s, state)
+    for depth in range(opts[DEPTH]):
+        _block_hits(geo, s, m, False)
+        if _block_escaped(lights, s, m) == 0:
+            break
+        # the vertex's numbers (a path that escaped ends: its stream is spent or not)
+        for k in range(m):
+            st = state[k]
+            for u in range(UNIFORMS):
+                st += _GOLDEN
+                s[0, k, BU + u] = _number(st)
+            state[k] = st
+        _block_light_samples(lights, s, m)
+        going = _block_vertex(opts, lights, lobes, pt, depth, s, m)
+        if layers and depth == 0:
+            for k in range(m):
+                if s[0, k, BSHADED] != 0.0:
+                    x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
+                    for c in range(3):
+                        sums.aov[y, x, c] += s[0, k, BW + c]
+                        sums.aov[y, x, 3 + c] += s[0, k, BN + c]
+        _block_hits(geo, s, m, True)
+        for k in range(m):
+            lit = s[0, k, BLEN] >= 0.0
+            for c in range(3):
+                s[0, k, BRAD + c] += s[0, k, BLI + c] if lit else 0.0
+        if going == 0:
+            break
+    for k in range(m):
+        x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
+        for c in range(3):
+            r = s[0, k, BRAD + c]
+            if r != r or r == math.inf:
+                r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
+            sums.acc[y, x, c] += r
+            if layers:
+                sums.acc2[y, x, c] += r * r
+
+
+@allocating_kernel(linked=AS_LOWERED)
+def _block_space():
+    """A block's random streams (the rest of its work space is on the stack)."""
+    return np.zeros(BLOCK, np.uint64)
+
+
+@nogil_kernel
+def trace_blocks(cam, opts, geo, lights, lobes, pt, seed, s0, s1, sums, queue):
+    """:func:`trace_tiles` for the scenes that :func:`block_scene` covers: each tile's pairs in
+    blocks of BLOCK paths, each block traced whole (:func:`_block`) in the tile's order, so
+    that an image is the same whatever the number of threads."""
+    w, h, size = opts[W], opts[H], opts[TILE]
+    tx_n = (w + size - 1) // size
+    ntiles = tx_n * ((h + size - 1) // size)
+    state = _block_space()
+    while True:
+        k = fetch_add(queue, 1)
+        if k >= ntiles:
+            return
+        x0, y0 = (k % tx_n) * size, (k // tx_n) * size
+        tile = (x0, y0, min(x0 + size, w), min(y0 + size, h))
+        total = (tile[2] - x0) * (tile[3] - y0) * (s1 - s0)
+        for start in range(0, total, BLOCK):
+            _block(cam, opts, geo, lights, lobes, pt, seed, tile, s0, start,
+                   min(BLOCK, total - start), sums, state)
+
+
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=None):
     """Add samples s0 .. s1 - 1 of every pixel to the running :data:`Sums`: radiance into
     ``acc``, and if opts[LAYERS] its square into ``acc2`` and the first-hit layers into ``aov``
@@ -1012,8 +1458,14 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
     nlobes = int(np.max(mats.mint[:, K1] - mats.mint[:, K0], initial=1))
     queue = np.zeros(1, np.int64)
 
+    blocks = None if grad is not None or clock is not None else block_scene(geo, mats, lights,
+                                                                            opts)
+
     def work():
-        trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
-                    nlobes, clock)
+        if blocks is not None:
+            trace_blocks(cam, opts, geo, lights, blocks[0], blocks[1], seed, s0, s1, sums, queue)
+        else:
+            trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
+                        nlobes, clock)
 
     in_threads(max(1, min(int(opts[THREADS]), ntiles)), work)

@@ -1,0 +1,131 @@
+"""The block tracer (:func:`brdf.render._integrator.trace_blocks`) against the packet's passes:
+the same estimator, so the same image to rounding, for every scene it covers; and the scenes it
+leaves to the packet."""
+
+import numpy as np
+import pytest
+
+import brdf
+from brdf import render
+from brdf.render import _integrator as I
+
+
+def _sphere_on_floor(spec, floor="lambert(albedo=0.5)", environment=None):
+    """A sphere on a floor quad in front of the camera, lit by an environment alone."""
+    floor_quad = render.Quad((-4.0, -1.0, 4.0), (8.0, 0.0, 0.0), (0.0, 0.0, -8.0), floor)
+    return render.Scene(
+        shapes=[render.Sphere((0.0, 0.0, 0.0), 1.0, spec), floor_quad],
+        camera=render.Camera((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov=40.0),
+        environment=render.Environment() if environment is None else environment)
+
+
+def _sky():
+    """An environment map with a bright sun-like patch (importance sampling matters)."""
+    h, w = 16, 32
+    img = np.full((h, w, 3), 0.2)
+    img[3:5, 10:13] = (40.0, 30.0, 20.0)
+    img[10:, :, 1] = 0.6
+    return render.Environment(map=img)
+
+
+def _both(scene, **kw):
+    """The same render by the blocks and by the packet; checks the blocks cover it."""
+    compiled = scene.compile()
+    opts = np.zeros(11, np.int64)
+    opts[I.STRATEGY] = I.MIS
+    assert I.block_scene(compiled.geo, compiled.mats, compiled.lights, opts) is not None
+    out = []
+    for flag in (True, False):
+        old, I.use_blocks = I.use_blocks, flag
+        try:
+            out.append(render.render(scene, progress=False, **kw))
+        finally:
+            I.use_blocks = old
+    return out
+
+
+SCENES = {
+    "ggx furnace": lambda: render.builtin("furnace", "ggx(alpha=0.5)"),
+    "lambert furnace": lambda: render.builtin("furnace", "lambert(albedo=0.8)"),
+    "lambert + ggx on a floor": lambda: _sphere_on_floor(
+        "lambert(albedo=[0.6, 0.4, 0.2]) + ggx(alpha=0.2, ks=0.5)"),
+    "ggx + lambert, anisotropic": lambda: _sphere_on_floor(
+        "ggx(alpha=0.1, alpha_y=0.4, ks=[0.9, 0.7, 0.5]) + lambert(albedo=0.3)"),
+    "height-correlated under a map": lambda: _sphere_on_floor(
+        "ggx(alpha=0.3, masking=height-correlated)", floor="ggx(alpha=0.6, ks=0.4)",
+        environment=_sky()),
+    "lambert + ggx under a map": lambda: _sphere_on_floor(
+        "lambert(albedo=0.4) + ggx(alpha=0.2, ks=0.5)", environment=_sky()),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_blocks_render_the_packets_image(name):
+    """Every layer (radiance, its variance, first-hit albedo and normal) equals the packet's to
+    rounding: the same numbers feed the same estimator."""
+    a, b = _both(SCENES[name](), spp=3, size=(40, 32), seed=7, threads=2)
+    scale = max(np.abs(b.image).max(), 1.0)
+    assert np.abs(a.image - b.image).max() <= 1e-12 * scale
+    assert np.abs(a.variance - b.variance).max() <= 1e-10 * scale * scale
+    assert np.abs(a.albedo - b.albedo).max() <= 1e-12
+    assert np.abs(a.normal - b.normal).max() <= 1e-12
+    assert b.image.mean() > 0.05  # not an empty picture
+
+
+def test_blocks_with_other_options_render_the_packets_image():
+    """Without jitter or layers, with short paths and early Russian roulette."""
+    scene = SCENES["lambert + ggx on a floor"]()
+    for kw in (dict(jitter=False), dict(layers=False), dict(max_depth=2),
+               dict(max_depth=12, rr_depth=1)):
+        a, b = _both(scene, spp=2, size=(24, 20), seed=11, threads=1, **kw)
+        assert np.abs(a.image - b.image).max() <= 1e-12 * max(np.abs(b.image).max(), 1.0), kw
+
+
+def test_blocks_same_seed_same_bytes_any_thread_count():
+    scene = SCENES["height-correlated under a map"]()
+    one = render.render(scene, spp=4, size=(33, 17), seed=2, threads=1, progress=False)
+    two = render.render(scene, spp=4, size=(33, 17), seed=2, threads=2, progress=False)
+    assert one.image.tobytes() == two.image.tobytes()
+    assert one.variance.tobytes() == two.variance.tobytes()
+
+
+def _covered(scene, strategy=I.MIS):
+    compiled = scene.compile()
+    opts = np.zeros(11, np.int64)
+    opts[I.STRATEGY] = strategy
+    return I.block_scene(compiled.geo, compiled.mats, compiled.lights, opts) is not None
+
+
+def test_what_the_blocks_leave_to_the_packet():
+    """Area and point lights, triangles, textures, other lobes, a Fresnel term, many shapes
+    and estimators other than MIS are the packet's."""
+    assert _covered(SCENES["ggx furnace"]())
+    assert not _covered(SCENES["ggx furnace"](), strategy=I.BSDF)
+    assert not _covered(render.builtin("cornell"))
+    assert not _covered(_sphere_on_floor("beckmann(alpha=0.2)"))
+    assert not _covered(_sphere_on_floor("ggx(alpha=0.2, fresnel=schlick)"))
+    assert not _covered(_sphere_on_floor("lambert + ggx(alpha=0.1) + ggx(alpha=0.5)"))
+    assert not _covered(_sphere_on_floor("mirror"))
+    lit = _sphere_on_floor("lambert")
+    lit.lights.append(render.PointLight((0.0, 3.0, 0.0), 5.0))
+    assert not _covered(lit)
+    many = _sphere_on_floor("lambert")
+    many.shapes += [render.Sphere((3.0 * i, 0.0, -5.0), 0.5, "lambert")
+                    for i in range(I.BLOCK_PRIMS)]
+    assert not _covered(many)
+    mesh = _sphere_on_floor("lambert")
+    mesh.shapes.append(render.Mesh(np.eye(3), np.array([[0, 1, 2]]), "lambert"))
+    assert not _covered(mesh)
+
+
+def test_derivatives_and_stats_stay_with_the_packet():
+    """Renders with derivative images or stage timers use the packet, whatever the scene."""
+    model = brdf.parse("ggx(alpha=0.5)")
+    scene = render.builtin("furnace", model)
+    assert _covered(scene)
+    r = render.render(scene, spp=1, size=8, progress=False,
+                      derivatives=render.Derivatives(model, ("alpha",)))
+    assert r.derivatives is not None and np.isfinite(r.derivatives).all()
+    assert np.abs(r.derivatives).max() > 0.0
+    s = render.render(scene, spp=1, size=8, progress=False, stats=True)
+    assert s.stats.shaded > 0
