@@ -14,10 +14,10 @@ evaluates f and its gradient on that material, :func:`_carry` and :func:`_emitte
 product rule, and :func:`_settle_derivatives` adds them to the pixel's sums. Without them
 ``grad`` is None, whose type makes numba leave those passes out of the compiled kernels.
 
-Scenes of a few spheres and quads with Lambertian and GGX lobes lit by the environment alone
-are traced another way, by :func:`trace_blocks` (see its section below): each block of BLOCK
-paths whole, vertex by vertex, every pass a loop over the block's lanes without branches,
-which LLVM runs in SIMD lanes. Its estimator is the packet's, to rounding.
+Scenes of a few spheres and quads with Lambertian and GGX lobes are traced another way, by
+:func:`trace_blocks` (see its section below): each block of BLOCK paths whole, vertex by
+vertex, every pass a loop over the block's lanes without branches, which LLVM runs in SIMD
+lanes. Its estimator is the packet's, to rounding.
 
 Each (pixel, sample) pair owns a random stream derived from (seed, pixel, sample index) alone,
 and a tile's paths run in an order fixed by the tile alone, so an image is the same to the last
@@ -1005,13 +1005,16 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
 
 # --- paths whole in blocks of lanes -------------------------------------------------------------
 #
-# Scenes of a few spheres and quads with Lambertian and GGX lobes, lit by the environment alone
-# (:func:`block_scene`), are traced by :func:`trace_blocks` instead of the packet's passes: a
-# block of BLOCK paths advances vertex by vertex, each step a few loops over the block's lanes
-# without branches or calls, its state in work space on the stack (which LLVM knows no other
-# array to alias), every primitive tested against every lane's ray in turn. LLVM runs those
-# loops in SIMD lanes, where the packet's passes branch per lane on the kind of primitive,
-# light and lobe. The estimator is the packet's: the same streams and numbers, the same light
+# Scenes of a few spheres and quads with Lambertian and GGX lobes (:func:`block_scene`) are
+# traced by :func:`trace_blocks` instead of the packet's passes: a block of BLOCK paths
+# advances vertex by vertex, each step a few loops over the block's lanes without branches or
+# calls, its state in work space on the stack (which LLVM knows no other array to alias), every
+# primitive tested against every lane's ray in turn, every lobe computed for every lane and
+# selected. LLVM runs those loops in SIMD lanes, where the packet's passes branch per lane on
+# the kind of primitive, light and lobe. Only the lights' samples other than the
+# environment's are drawn lane by lane (:func:`._lights.sample_light`). The paths in flight
+# are kept in the first lanes (:func:`_block_compact`), so that the passes run over no lane
+# without one. The estimator is the packet's: the same streams and numbers, the same light
 # sample, lobe choice, MIS weights, Russian roulette and ends of paths; only the order of some
 # floating-point operations differs, so an image differs from the packet's by rounding and by
 # the paths it moves (a different rounding can turn a ray's hit into a miss).
@@ -1020,18 +1023,19 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
 BLOCK = 64
 #: Primitives at most in a scene traced in blocks: each is tested against every ray, where the
 #: packet's tree skips most of them.
-BLOCK_PRIMS = 16
+BLOCK_PRIMS = 32
 #: Whether :func:`render_pass` traces the scenes that :func:`block_scene` covers in blocks
 #: (else in the packet, as every other scene; tests compare the two).
 use_blocks = True
 #: Columns of the block tracer's primitive table: whether it is a sphere, its centre and
-#: radius (a sphere's), its normal and tangent (a quad's), its material's row of the lobes.
-PT_SPHERE, PT_C, PT_R, PT_N, PT_T, PT_MAT, PRIM_COLS = 0, 1, 4, 5, 8, 11, 12
+#: radius (a sphere's), its normal and tangent (a quad's), its material's row of the lobes,
+#: the light it is (-1: none).
+PT_SPHERE, PT_C, PT_R, PT_N, PT_T, PT_MAT, PT_LIGHT, PRIM_COLS = 0, 1, 4, 5, 8, 11, 12, 13
 #: Columns of the block tracer's lobe table (:func:`block_scene`): whether the Lambertian lobe
 #: comes first in the material's mixture, its albedo, GGX's ks, roughness and masking (1:
 #: separable), whether the material is traced at all (0: no material, the path ends there).
 LOBE_FIRST, KD, KS, ALPHA_X, ALPHA_Y, SEPARABLE, SHADED, LOBE_COLS = 0, 1, 4, 7, 8, 9, 10, 11
-#: rows of a block's work space (stack_array(1, BLOCK, BLOCK_ROWS))
+#: rows of a block's work space (stack_array(1, BLOCK, BLOCK_ROWS)), a lane per path in flight
 BLOCK_LAYOUT = (
     ("BO", 3, "the ray's origin"),
     ("BD", 3, "its direction"),
@@ -1040,32 +1044,40 @@ BLOCK_LAYOUT = (
     ("BTHR", 3, "the path's throughput"),
     ("BRAD", 3, "its radiance"),
     ("BPREV", 1, "the density of its last bounce (inf: the camera's ray)"),
-    ("BLIVE", 1, "1 while the path is in flight"),
+    ("BLIVE", 1, "1 while the path is in flight, 0 once it ended"),
+    ("BDEPTH", 1, "its depth (segments traced)"),
     ("BPX", 2, "its pixel (x, y)"),
+    ("BSTATE", 2, "its random stream's state, in two exact halves"),
     ("BU", UNIFORMS, "the vertex's uniform numbers"),
     ("BN", 3, "the vertex's normal, on the ray's side"),
+    ("BA", 3, "its shading tangent"),
+    ("BB", 3, "its bitangent"),
     ("BQ", 3, "the next rays' origin"),
-    ("BL", 3, "the light sample's direction (world)"),
+    ("BMAT", 1, "its material's row of the lobe table"),
+    ("BSHADED", 1, "1 where the path shades its vertex, 2 where that is its first"),
+    ("BL", 3, "the light sample's unit direction (world)"),
     ("BLI", 3, "its radiance, then what it adds to the path's if the shadow ray gets through"),
-    ("BLEN", 1, "its density, then the shadow ray's length (inf; -1: none, or occluded)"),
+    ("BLEN", 1, "its density, then the shadow ray's length (-1: none, or occluded)"),
+    ("BREACH", 1, "the shadow ray's length short of the light (inf: none)"),
+    ("BPICK", 1, "the probability of picking its light"),
     ("BW", 3, "the BSDF sample's weight f cos / pdf"),
-    ("BSHADED", 1, "1 where the path shaded its vertex"),
 )
-((BO, BD, BT, BHIT, BTHR, BRAD, BPREV, BLIVE, BPX, BU, BN, BQ, BL, BLI, BLEN, BW, BSHADED),
- BLOCK_ROWS) = _offsets(BLOCK_LAYOUT)
+((BO, BD, BT, BHIT, BTHR, BRAD, BPREV, BLIVE, BDEPTH, BPX, BSTATE, BU, BN, BA, BB, BQ, BMAT,
+  BSHADED, BL, BLI, BLEN, BREACH, BPICK, BW), BLOCK_ROWS) = _offsets(BLOCK_LAYOUT)
+#: The rows a path carries from vertex to vertex (the first ones): what compaction moves.
+CARRIED = BU
 
 
 def block_scene(geo, mats, lights, opts):
     """The tables :func:`trace_blocks` takes, ``(lobes, prims)``, or None where the blocks do
-    not cover the render: a scene of 1 to BLOCK_PRIMS spheres and quads (no triangles,
-    nothing emissive), the environment its only light, MIS, and every material a Lambertian
-    lobe, a GGX lobe without a Fresnel term, or one of each, without textures. ``lobes`` has
+    not cover the render: a scene of 1 to BLOCK_PRIMS spheres and quads (no triangles) with at
+    least one light, MIS, and every material a Lambertian lobe, a GGX lobe without a Fresnel
+    term, or one of each, without textures. ``lobes`` has
     a row per material (LOBE_COLS) and a last one of zeros for shapes without one; ``prims``
     a row per primitive (PRIM_COLS)."""
     prim = geo.prim
     if (not use_blocks or geo.tri.shape[0] or not 0 < prim.shape[0] <= BLOCK_PRIMS
-            or np.any(prim[:, 3] >= 0) or lights.pmf.shape[0] != 1 or lights.env_light != 0
-            or opts[STRATEGY] != MIS):
+            or lights.pmf.shape[0] == 0 or opts[STRATEGY] != MIS):
         return None
     mint = mats.mint
     lobes = np.zeros((mint.shape[0] + 1, LOBE_COLS))
@@ -1092,7 +1104,7 @@ def block_scene(geo, mats, lights, opts):
                 row[KS:KS + 3], row[ALPHA_X], row[ALPHA_Y] = q[:3], q[3], q[4]
                 row[SEPARABLE] = float(q[5] == 0.0)
     prims = np.zeros((prim.shape[0], PRIM_COLS))
-    for i, (kind, j, m, _) in enumerate(prim):
+    for i, (kind, j, m, light) in enumerate(prim):
         if kind == SPHERE:
             prims[i, PT_SPHERE] = 1.0
             prims[i, PT_C:PT_C + 3], prims[i, PT_R] = geo.sph[j, :3], geo.sph[j, 3]
@@ -1100,6 +1112,7 @@ def block_scene(geo, mats, lights, opts):
             prims[i, PT_R] = 1.0  # a quad's lanes divide by it too, then select its normal
             prims[i, PT_N:PT_N + 3], prims[i, PT_T:PT_T + 3] = geo.quad[j, 3], geo.quad[j, 6]
         prims[i, PT_MAT] = m if m >= 0 else mint.shape[0]
+        prims[i, PT_LIGHT] = light
     return lobes, prims
 
 
@@ -1142,18 +1155,19 @@ def _block_hits(geo, s, m, shadow):
 
 
 @inline_kernel
-def _block_launch(cam, opts, seed, tile, s0, start, m, s, state):
-    """Start the block's paths: the tile's pairs ``start`` to ``start + m`` (pixel-major within
-    a sample, as :func:`_launch`), each with its stream (into ``state``), jitter and camera
-    ray. The pairs' pixels and samples are stepped along first (integer division costs tens of
-    cycles), then the rest runs in a loop without branches."""
+def _block_launch(cam, opts, seed, tile, s0, start, n, s):
+    """Start the paths of the tile's pairs ``start`` to ``start + n`` (pixel-major within a
+    sample, as :func:`_launch`) in lanes 0 to n - 1: each pair's stream, jitter and camera
+    ray. The pairs' pixels and samples are stepped along first (integer division costs tens
+    of cycles), then the rest runs in a loop without branches over whole SIMD registers (the
+    lanes past n get numbers that nothing reads)."""
     x0, y0, x1, y1 = tile
     tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     jitter = opts[JITTER] != 0
     width = opts[W]
-    k0 = start % npix
-    x, y, smp = k0 % tw, k0 // tw, start // npix
-    for k in range(m):
+    i0 = start % npix
+    x, y, smp = i0 % tw, i0 // tw, start // npix
+    for k in range(n):
         s[0, k, BPX], s[0, k, BPX + 1], s[0, k, BT] = x0 + x, y0 + y, s0 + smp
         x += 1
         if x == tw:
@@ -1162,20 +1176,58 @@ def _block_launch(cam, opts, seed, tile, s0, start, m, s, state):
             if y * tw == npix:
                 y = 0
                 smp += 1
-    for k in range(m):
+    for k in range(n, _padded(n)):
+        s[0, k, BPX] = s[0, k, BPX + 1] = s[0, k, BT] = 0.0
+    for k in range(_padded(n)):
         px, py = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
         st = _stream(seed, py * width + px, int(s[0, k, BT]))
-        a = st + _GOLDEN
-        b = a + _GOLDEN
-        jx = _number(a) if jitter else 0.5
-        jy = _number(b) if jitter else 0.5
-        state[k] = b if jitter else st
+        a1 = st + _GOLDEN
+        a2 = a1 + _GOLDEN
+        jx = _number(a1) if jitter else 0.5
+        jy = _number(a2) if jitter else 0.5
+        st = a2 if jitter else st
+        s[0, k, BSTATE], s[0, k, BSTATE + 1] = float(st >> np.uint64(32)), float(st & _LOW32)
         s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = _camera_ray(cam, px, py, jx, jy)
         s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = cam[0], cam[1], cam[2]
         s[0, k, BPREV] = math.inf  # the camera's ray: no MIS on what it sees
-        s[0, k, BLIVE] = 1.0
+        s[0, k, BLIVE] = 1.0 if k < n else 0.0
+        s[0, k, BDEPTH] = 0.0
         for c in range(3):
             s[0, k, BTHR + c], s[0, k, BRAD + c] = 1.0, 0.0
+
+
+@inline_kernel
+def _block_compact(s, m, sums, layers):
+    """Settle the paths in lanes 0 .. m - 1 that ended or whose rays escaped (see
+    :func:`_settle`), and move the others into their lanes, so that the paths that go on fill
+    lanes 0 .. m' - 1 and the passes over the vertices run over no lane without one (a lane
+    from the end into each gap: the order is fixed by the lanes alone). Returns m'."""
+    keep = stack_array(1, BLOCK, 1)
+    for k in range(m):
+        keep[0, k, 0] = (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
+    for k in range(m):
+        if keep[0, k, 0] == 0.0:
+            x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
+            for c in range(3):
+                r = s[0, k, BRAD + c]
+                if r != r or r == math.inf:
+                    r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
+                sums.acc[y, x, c] += r
+                if layers:
+                    sums.acc2[y, x, c] += r * r
+    i, j = 0, m - 1
+    while True:
+        while i <= j and keep[0, i, 0] != 0.0:
+            i += 1
+        while j > i and keep[0, j, 0] == 0.0:
+            j -= 1
+        if i >= j:
+            return i
+        for r in range(CARRIED):
+            s[0, i, r] = s[0, j, r]
+        keep[0, i, 0], keep[0, j, 0] = 1.0, 0.0
+        i += 1
+        j -= 1
 
 
 @inline_kernel
@@ -1199,8 +1251,12 @@ def _block_escaped(lights, s, m):
     whose rays hit. A constant environment is looked up once, outside the loop over the lanes:
     the map's lookups in it kept it scalar."""
     e = lights.env_light
-    pick = lights.pmf[e]
     hits = 0
+    if e < 0:
+        for k in range(m):
+            hits += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
+        return hits
+    pick = lights.pmf[e]
     if env_constant(lights, e):
         le0, le1, le2, epdf = env_lookup(lights, e, 0.0, 0.0, 1.0)
         for k in range(m):
@@ -1226,75 +1282,155 @@ def _block_escaped(lights, s, m):
 
 
 @inline_kernel
-def _block_light_samples(lights, s, m):
-    """The environment's next-event sample (:func:`._lights.env_samples`) of the paths whose
-    rays hit, into rows BL (direction), BLI (radiance) and BLEN (density): the one light,
-    picked with probability pmf[e] (:func:`._lights.pick_light`'s rescaling of u). A constant
-    environment's draws cost less than listing the lanes: every lane draws one."""
-    e = lights.env_light
-    p0 = lights.pmf[e]
+def _block_emission(lights, geo, pt, s, m):
+    """Emission seen where the paths' rays hit an area light (see :func:`_vertices`), weighed
+    against next-event estimation, added to their radiance: lane by lane, for the lanes
+    listed (without branches) whose primitive emits."""
     lanes = stack_array(1, BLOCK, 1)
-    u = stack_array(1, BLOCK, 2)
-    drawn = stack_array(1, BLOCK, 7)
     n = 0
-    every = env_constant(lights, e)
     for k in range(m):
+        i = int(s[0, k, BHIT]) if s[0, k, BT] < math.inf else 0
         lanes[0, n, 0] = k
-        u[0, n, 0] = rescaled_pick(s[0, k, BU + PICK], 0.0, p0)
-        u[0, n, 1] = s[0, k, BU + ON_LIGHT]
-        n += every | ((s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf))
-    env_samples(lights, e, u, n, drawn)
-    for i in range(n):
-        k = int(lanes[0, i, 0])
-        for c in range(3):
-            s[0, k, BL + c], s[0, k, BLI + c] = drawn[0, i, c], drawn[0, i, 3 + c]
-        s[0, k, BLEN] = drawn[0, i, 6]
+        n += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf) & (pt[i, PT_LIGHT] >= 0.0)
+    for a in range(n):
+        k = int(lanes[0, a, 0])
+        i = int(s[0, k, BHIT])
+        light = int(pt[i, PT_LIGHT])
+        f = lights.lf[light]
+        t = s[0, k, BT]
+        ox, oy, oz = s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2]
+        dx, dy, dz = s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2]
+        nx, ny, nz = _block_normal(pt, i, ox + t * dx, oy + t * dy, oz + t * dz)
+        if emits_towards(f, nx, ny, nz, -dx, -dy, -dz):
+            w = _power(s[0, k, BPREV], lights.pmf[light] * area_pdf(
+                geo, f, ox, oy, oz, t * dx, t * dy, t * dz, t, nx, ny, nz))
+            for c in range(3):
+                s[0, k, BRAD + c] += s[0, k, BTHR + c] * w * f[3 + c]
 
 
 @inline_kernel
-def _block_vertex(opts, lights, lobes, pt, depth, s, m):
-    """Every lane's vertex at once (see :func:`_vertices`, :func:`_shade`, :func:`_bounce`):
-    at a hit the frame, the next-event sample (drawn beforehand into BL, BLI, BLEN), the lobe
-    picked, the BSDF sample and the MIS weights; the light's share (kept in BLI until the
-    shadow ray is traced); the bounce, or the path's end. Every lane computes every lobe, and
-    selects. Returns the number of paths that go on."""
-    e = lights.env_light
-    pick = lights.pmf[e]
-    last = depth + 1 >= opts[DEPTH]
-    roulette = depth + 1 >= opts[RR]
-    going = 0
+def _block_normal(pt, i, px, py, pz):
+    """The geometric normal of primitive i at point p (the outward one; see :func:`_surface`)."""
+    sphere = pt[i, PT_SPHERE] != 0.0
+    r = pt[i, PT_R]
+    return ((px - pt[i, PT_C]) / r if sphere else pt[i, PT_N],
+            (py - pt[i, PT_C + 1]) / r if sphere else pt[i, PT_N + 1],
+            (pz - pt[i, PT_C + 2]) / r if sphere else pt[i, PT_N + 2])
+
+
+@inline_kernel
+def _block_surface(opts, lobes, pt, s, m):
+    """Every lane's vertex (see :func:`_vertices`): the normal on the side the ray arrives
+    from, the shading frame (:func:`_frame`), the next rays' origin, the material, and whether
+    the path shades here (alive, its ray hit, a material, depth to spare), into rows BN, BA, BB,
+    BQ, BMAT and BSHADED. A miss's numbers are computed at primitive 0 and dropped. Returns the
+    number of paths that shade."""
+    shading = 0
     for k in range(m):
-        live = s[0, k, BLIVE] > 0.0
         t = s[0, k, BT]
         hit = t < math.inf
         dx, dy, dz = s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2]
-        # the surface (a miss's numbers are computed at primitive 0 and dropped)
         i = int(s[0, k, BHIT]) if hit else 0
         tt = t if hit else 0.0
         px = s[0, k, BO] + tt * dx
         py = s[0, k, BO + 1] + tt * dy
         pz = s[0, k, BO + 2] + tt * dz
         sphere = pt[i, PT_SPHERE] != 0.0
-        r = pt[i, PT_R]
-        nx = (px - pt[i, PT_C]) / r if sphere else pt[i, PT_N]
-        ny = (py - pt[i, PT_C + 1]) / r if sphere else pt[i, PT_N + 1]
-        nz = (pz - pt[i, PT_C + 2]) / r if sphere else pt[i, PT_N + 2]
+        nx, ny, nz = _block_normal(pt, i, px, py, pz)
         tx = -ny if sphere else pt[i, PT_T]
         ty = nx if sphere else pt[i, PT_T + 1]
         tz = 0.0 if sphere else pt[i, PT_T + 2]
-        mat = int(pt[i, PT_MAT])
-        shaded = live & hit & (not last) & (lobes[mat, SHADED] != 0.0)
+        mat = pt[i, PT_MAT]
+        depth = s[0, k, BDEPTH]
+        shaded = ((s[0, k, BLIVE] > 0.0) & hit & (depth + 1.0 < opts[DEPTH])
+                  & (lobes[int(mat), SHADED] != 0.0))
         # two-sided: the normal on the side the ray arrives from
         side = -1.0 if nx * dx + ny * dy + nz * dz > 0.0 else 1.0
         nx, ny, nz = side * nx, side * ny, side * nz
         ax, ay, az, bx, by, bz = _frame(nx, ny, nz, tx, ty, tz, not sphere)
+        s[0, k, BN], s[0, k, BN + 1], s[0, k, BN + 2] = nx, ny, nz
+        s[0, k, BA], s[0, k, BA + 1], s[0, k, BA + 2] = ax, ay, az
+        s[0, k, BB], s[0, k, BB + 1], s[0, k, BB + 2] = bx, by, bz
+        s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2] = _offset(px, py, pz, nx, ny, nz, 1.0)
+        s[0, k, BMAT] = mat
+        s[0, k, BSHADED] = (2.0 if depth == 0.0 else 1.0) if shaded else 0.0
+        shading += shaded
+    return shading
+
+
+@inline_kernel
+def _block_light_samples(lights, geo, s, m):
+    """The next-event sample of every path that shades (see :func:`_vertices`): a light picked
+    by :func:`._lights.pick_light`, a direction towards it, its radiance and density, the
+    shadow ray's length and the pick's probability, into rows BL, BLI, BLEN, BREACH and BPICK.
+    The environment's samples are drawn in one loop (:func:`._lights.env_samples`), the other
+    lights' lane by lane (:func:`._lights.sample_light`). With the environment the one light,
+    every lane draws one, which costs less than listing the lanes."""
+    pmf = lights.pmf
+    e = lights.env_light
+    lanes = stack_array(1, BLOCK, 1)
+    u = stack_array(1, BLOCK, 2)
+    drawn = stack_array(1, BLOCK, 7)
+    n = 0
+    if pmf.shape[0] == 1 and e == 0:
+        every = env_constant(lights, e)
+        p0 = pmf[0]
+        for k in range(m):
+            lanes[0, n, 0] = k
+            u[0, n, 0] = rescaled_pick(s[0, k, BU + PICK], 0.0, p0)
+            u[0, n, 1] = s[0, k, BU + ON_LIGHT]
+            s[0, k, BPICK] = p0
+            n += every | (s[0, k, BSHADED] != 0.0)
+    else:
+        li = stack_array(1, 3, 1)
+        for k in range(m):
+            if s[0, k, BSHADED] == 0.0:
+                continue
+            l, ul = pick_light(pmf, s[0, k, BU + PICK])
+            s[0, k, BPICK] = pmf[l]
+            if l == e:
+                lanes[0, n, 0] = k
+                u[0, n, 0], u[0, n, 1] = ul, s[0, k, BU + ON_LIGHT]
+                n += 1
+                continue
+            vx, vy, vz, inv, dist, lpdf = sample_light(
+                lights, geo, l, s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2], ul,
+                s[0, k, BU + ON_LIGHT], li[0, :, 0])
+            s[0, k, BL], s[0, k, BL + 1], s[0, k, BL + 2] = vx * inv, vy * inv, vz * inv
+            for c in range(3):
+                s[0, k, BLI + c] = li[0, c, 0]
+            s[0, k, BLEN] = lpdf
+            s[0, k, BREACH] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+    env_samples(lights, e, u, n, drawn)
+    for a in range(n):
+        k = int(lanes[0, a, 0])
+        for c in range(3):
+            s[0, k, BL + c], s[0, k, BLI + c] = drawn[0, a, c], drawn[0, a, 3 + c]
+        s[0, k, BLEN] = drawn[0, a, 6]
+        s[0, k, BREACH] = math.inf
+        s[0, k, BPICK] = pmf[e]
+
+
+@inline_kernel
+def _block_shade(opts, lobes, s, m):
+    """Every shading lane's BSDF (see :func:`_shade`, :func:`_bounce`): towards the light
+    sample, f and the MIS weight, what the sample adds if its shadow ray gets through (into
+    BLI; the ray's length into BLEN, -1 for none); the lobe picked, the BSDF sample, its weight
+    and density; the bounce, or the path's end. Every lane computes every lobe, and selects.
+    Returns the number of paths that go on."""
+    going = 0
+    for k in range(m):
+        shaded = s[0, k, BSHADED] != 0.0
+        dx, dy, dz = s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2]
+        nx, ny, nz = s[0, k, BN], s[0, k, BN + 1], s[0, k, BN + 2]
+        ax, ay, az = s[0, k, BA], s[0, k, BA + 1], s[0, k, BA + 2]
+        bx, by, bz = s[0, k, BB], s[0, k, BB + 1], s[0, k, BB + 2]
         vx = -(dx * ax + dy * ay + dz * az)
         vy = -(dx * bx + dy * by + dz * bz)
         vz = -(dx * nx + dy * ny + dz * nz)
-        qx, qy, qz = _offset(px, py, pz, nx, ny, nz, 1.0)
         # the light sample, in the local frame
         lvx, lvy, lvz = s[0, k, BL], s[0, k, BL + 1], s[0, k, BL + 2]
-        lpdf = s[0, k, BLEN]
+        lpdf, pick = s[0, k, BLEN], s[0, k, BPICK]
         li0, li1, li2 = s[0, k, BLI], s[0, k, BLI + 1], s[0, k, BLI + 2]
         cast = (shaded & (lpdf > 0.0) & ((li0 > 0.0) | (li1 > 0.0) | (li2 > 0.0))
                 & (lvx * nx + lvy * ny + lvz * nz > 0.0))
@@ -1304,7 +1440,7 @@ def _block_vertex(opts, lights, lobes, pt, depth, s, m):
         # the lobes: Lambert's and GGX's parameters, the probability of picking each (their
         # hints, lambert.hint_ and microfacet.hint_ without a Fresnel term: the albedo's and
         # ks's channel means where v is above the surface; mixture_selection)
-        row = lobes[mat]
+        row = lobes[int(s[0, k, BMAT])]
         kd0, kd1, kd2, ks0, ks1, ks2 = row[KD], row[KD + 1], row[KD + 2], row[KS], row[KS + 1], \
             row[KS + 2]
         alx, aly, sep = row[ALPHA_X], row[ALPHA_Y], row[SEPARABLE] != 0.0
@@ -1313,17 +1449,20 @@ def _block_vertex(opts, lights, lobes, pt, depth, s, m):
         total = max(hd, 0.0) + max(hs, 0.0)
         sel_d = max(hd, 0.0) / total if total > 0.0 else 0.5
         sel_s = max(hs, 0.0) / total if total > 0.0 else 0.5
-        # f(l, v) and the density of l given v towards the light
+        # f(l, v) and the density of l given v towards the light (see _light_scale: a delta
+        # light's density is inf, and its weight 1)
         fd = lambert.per_albedo(lz, vz)
         fs = microfacet.factor_in_lanes(GGX, alx, aly, sep, lx, ly, lz, vx, vy, vz)
         bpdf = (sel_d * lambert.density_in_lanes(vz, lz)
                 + sel_s * microfacet.density_in_lanes(GGX, alx, aly, vx, vy, vz, lx, ly, lz))
-        scale = _power(pick * lpdf, bpdf) * max(lz, 0.0) / (pick * lpdf) if cast else 0.0
+        cos_l = max(lz, 0.0)
+        scale = (cos_l / pick if lpdf == math.inf
+                 else _power(pick * lpdf, bpdf) * cos_l / (pick * lpdf))
+        scale = scale if cast else 0.0
         s[0, k, BLI] = s[0, k, BTHR] * (kd0 * fd + ks0 * fs) * li0 * scale
         s[0, k, BLI + 1] = s[0, k, BTHR + 1] * (kd1 * fd + ks1 * fs) * li1 * scale
         s[0, k, BLI + 2] = s[0, k, BTHR + 2] * (kd2 * fd + ks2 * fs) * li2 * scale
-        s[0, k, BLEN] = math.inf if cast else -1.0
-        s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2] = qx, qy, qz
+        s[0, k, BLEN] = s[0, k, BREACH] if cast else -1.0
         # the BSDF sample: a lobe by u1 (then u1 rescaled within its share), drawn with (u1, u2)
         first = row[LOBE_FIRST] != 0.0
         sel_0 = sel_d if first else sel_s
@@ -1347,8 +1486,6 @@ def _block_vertex(opts, lights, lobes, pt, depth, s, m):
         c = oz / pdf if ok else 0.0
         w0, w1, w2 = (kd0 * fd + ks0 * fs) * c, (kd1 * fd + ks1 * fs) * c, (kd2 * fd + ks2 * fs) * c
         s[0, k, BW], s[0, k, BW + 1], s[0, k, BW + 2] = w0, w1, w2
-        s[0, k, BN], s[0, k, BN + 1], s[0, k, BN + 2] = nx, ny, nz
-        s[0, k, BSHADED] = 1.0 if shaded else 0.0
         # the bounce: below the geometric surface the shading normal would leak light
         wx = ox * ax + oy * bx + oz * nx
         wy = ox * ay + oy * by + oz * ny
@@ -1356,77 +1493,97 @@ def _block_vertex(opts, lights, lobes, pt, depth, s, m):
         ok = ok & (wx * nx + wy * ny + wz * nz > 0.0)
         t0, t1, t2 = s[0, k, BTHR] * w0, s[0, k, BTHR + 1] * w1, s[0, k, BTHR + 2] * w2
         keep = min(max(t0, max(t1, t2)), 0.95)
+        depth = s[0, k, BDEPTH] + 1.0
+        roulette = depth >= opts[RR]
         ok = ok & ((not roulette) | (s[0, k, BU + ROULETTE] < keep))
         d = keep if roulette else 1.0
         s[0, k, BTHR], s[0, k, BTHR + 1], s[0, k, BTHR + 2] = t0 / d, t1 / d, t2 / d
-        s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = qx, qy, qz
+        s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2]
         s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = wx, wy, wz
         s[0, k, BPREV] = pdf
+        s[0, k, BDEPTH] = depth
         s[0, k, BLIVE] = 1.0 if ok else 0.0
         going += ok
     return going
 
 
 @inline_kernel
-def _block(cam, opts, geo, lights, lobes, pt, seed, tile, s0, start, m, sums, state):
-    """Trace the tile's pairs ``start`` to ``start + m`` (m <= BLOCK) whole, vertex by vertex,
-    and add them to their pixels' running sums (see :func:`_settle`)."""
+def _padded(m):
+    """m lanes rounded up to whole SIMD registers (eight lanes: AVX-512), so that a pass over
+    them runs without a scalar remainder."""
+    return min(BLOCK, (m + 7) // 8 * 8)
+
+
+@inline_kernel
+def _block_idle(s, m):
+    """Lanes m to :func:`_padded` (m) made idle (no path, no hit); returns their end."""
+    mm = _padded(m)
+    for k in range(m, mm):
+        s[0, k, BLIVE], s[0, k, BT] = 0.0, math.inf
+    return mm
+
+
+@inline_kernel
+def _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums):
+    """Trace the tile's ``total`` pairs in blocks of BLOCK paths, each block vertex by vertex
+    until its last path ends. The paths still in flight are kept in the first lanes
+    (:func:`_block_compact`), so that the passes over the vertices run over those alone as
+    paths end at different depths. The order of everything is fixed by the tile."""
     s = stack_array(1, BLOCK, BLOCK_ROWS)
     layers = opts[LAYERS] != 0
-    _block_launch(cam, opts, seed, tile, s0, start, m, s, state)
-    for depth in range(opts[DEPTH]):
-        _block_hits(geo, s, m, False)
-        if _block_escaped(lights, s, m) == 0:
-            break
-        # the vertex's numbers (a path that escaped ends: its stream is spent or not)
-        for k in range(m):
-            st = state[k]
-            for u in range(UNIFORMS):
-                st += _GOLDEN
-                s[0, k, BU + u] = _number(st)
-            state[k] = st
-        _block_light_samples(lights, s, m)
-        going = _block_vertex(opts, lights, lobes, pt, depth, s, m)
-        if layers and depth == 0:
-            for k in range(m):
-                if s[0, k, BSHADED] != 0.0:
-                    x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
-                    for c in range(3):
-                        sums.aov[y, x, c] += s[0, k, BW + c]
-                        sums.aov[y, x, 3 + c] += s[0, k, BN + c]
-        _block_hits(geo, s, m, True)
-        for k in range(m):
-            lit = s[0, k, BLEN] >= 0.0
-            for c in range(3):
-                s[0, k, BRAD + c] += s[0, k, BLI + c] if lit else 0.0
-        if going == 0:
-            break
-    for k in range(m):
-        x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
-        for c in range(3):
-            r = s[0, k, BRAD + c]
-            if r != r or r == math.inf:
-                r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
-            sums.acc[y, x, c] += r
+    emitters = False
+    for i in range(pt.shape[0]):
+        emitters |= pt[i, PT_LIGHT] >= 0.0
+    for start in range(0, total, BLOCK):
+        m = min(BLOCK, total - start)
+        _block_launch(cam, opts, seed, tile, s0, start, m, s)
+        mm = _padded(m)
+        while True:
+            _block_hits(geo, s, mm, False)
+            _block_escaped(lights, s, mm)
+            if emitters:
+                _block_emission(lights, geo, pt, s, mm)
+            m = _block_compact(s, m, sums, layers)
+            if m == 0:
+                break
+            mm = _block_idle(s, m)
+            if _block_surface(opts, lobes, pt, s, mm) == 0:
+                for k in range(m):
+                    s[0, k, BLIVE] = 0.0  # every path ends here
+                continue
+            # the vertex's numbers
+            for k in range(mm):
+                st = ((np.uint64(s[0, k, BSTATE]) << np.uint64(32))
+                      | np.uint64(s[0, k, BSTATE + 1]))
+                for u in range(UNIFORMS):
+                    st += _GOLDEN
+                    s[0, k, BU + u] = _number(st)
+                s[0, k, BSTATE] = float(st >> np.uint64(32))
+                s[0, k, BSTATE + 1] = float(st & _LOW32)
+            _block_light_samples(lights, geo, s, mm)
+            _block_shade(opts, lobes, s, mm)
             if layers:
-                sums.acc2[y, x, c] += r * r
-
-
-@allocating_kernel(linked=AS_LOWERED)
-def _block_space():
-    """A block's random streams (the rest of its work space is on the stack)."""
-    return np.zeros(BLOCK, np.uint64)
+                for k in range(m):
+                    if s[0, k, BSHADED] == 2.0:
+                        x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
+                        for c in range(3):
+                            sums.aov[y, x, c] += s[0, k, BW + c]
+                            sums.aov[y, x, 3 + c] += s[0, k, BN + c]
+            _block_hits(geo, s, mm, True)
+            for k in range(mm):
+                lit = s[0, k, BLEN] >= 0.0
+                for c in range(3):
+                    s[0, k, BRAD + c] += s[0, k, BLI + c] if lit else 0.0
 
 
 @nogil_kernel
 def trace_blocks(cam, opts, geo, lights, lobes, pt, seed, s0, s1, sums, queue):
-    """:func:`trace_tiles` for the scenes that :func:`block_scene` covers: each tile's pairs in
-    blocks of BLOCK paths, each block traced whole (:func:`_block`) in the tile's order, so
-    that an image is the same whatever the number of threads."""
+    """:func:`trace_tiles` for the scenes that :func:`block_scene` covers: each tile's pairs
+    through a block of BLOCK lanes (:func:`_block_tile`), in an order fixed by the tile, so that
+    an image is the same whatever the number of threads."""
     w, h, size = opts[W], opts[H], opts[TILE]
     tx_n = (w + size - 1) // size
     ntiles = tx_n * ((h + size - 1) // size)
-    state = _block_space()
     while True:
         k = fetch_add(queue, 1)
         if k >= ntiles:
@@ -1434,9 +1591,7 @@ def trace_blocks(cam, opts, geo, lights, lobes, pt, seed, s0, s1, sums, queue):
         x0, y0 = (k % tx_n) * size, (k // tx_n) * size
         tile = (x0, y0, min(x0 + size, w), min(y0 + size, h))
         total = (tile[2] - x0) * (tile[3] - y0) * (s1 - s0)
-        for start in range(0, total, BLOCK):
-            _block(cam, opts, geo, lights, lobes, pt, seed, tile, s0, start,
-                   min(BLOCK, total - start), sums, state)
+        _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums)
 
 
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=None):

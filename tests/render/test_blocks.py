@@ -10,13 +10,20 @@ from brdf import render
 from brdf.render import _integrator as I
 
 
-def _sphere_on_floor(spec, floor="lambert(albedo=0.5)", environment=None):
-    """A sphere on a floor quad in front of the camera, lit by an environment alone."""
+def _sphere_on_floor(spec, floor="lambert(albedo=0.5)", environment=None, lights=(),
+                     shapes=()):
+    """A sphere on a floor quad in front of the camera, lit by an environment (constant by
+    default, none if False) and ``lights``."""
     floor_quad = render.Quad((-4.0, -1.0, 4.0), (8.0, 0.0, 0.0), (0.0, 0.0, -8.0), floor)
     return render.Scene(
-        shapes=[render.Sphere((0.0, 0.0, 0.0), 1.0, spec), floor_quad],
+        shapes=[render.Sphere((0.0, 0.0, 0.0), 1.0, spec), floor_quad, *shapes],
         camera=render.Camera((0.0, 0.5, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), fov=40.0),
-        environment=render.Environment() if environment is None else environment)
+        lights=list(lights),
+        environment=(render.Environment() if environment is None
+                     else environment if environment is not False else None))
+
+
+_PLASTIC = "lambert(albedo=0.4) + ggx(alpha=0.2, ks=0.5)"
 
 
 def _sky():
@@ -54,9 +61,30 @@ SCENES = {
     "height-correlated under a map": lambda: _sphere_on_floor(
         "ggx(alpha=0.3, masking=height-correlated)", floor="ggx(alpha=0.6, ks=0.4)",
         environment=_sky()),
-    "lambert + ggx under a map": lambda: _sphere_on_floor(
-        "lambert(albedo=0.4) + ggx(alpha=0.2, ks=0.5)", environment=_sky()),
+    "lambert + ggx under a map": lambda: _sphere_on_floor(_PLASTIC, environment=_sky()),
+    "point and spot lights": lambda: _sphere_on_floor(
+        _PLASTIC, environment=False,
+        lights=[render.PointLight((1.0, 3.0, 1.0), 20.0, attenuation=(1.0, 0.2, 0.0)),
+                render.SpotLight((-1.0, 3.0, 1.0), (1.0, -3.0, -1.0), (5.0, 8.0, 12.0),
+                                 cutoff=25.0, exponent=3.0)]),
+    "directional light and a map": lambda: _sphere_on_floor(
+        "ggx(alpha=0.3, ks=0.8) + lambert(albedo=0.2)", environment=_sky(),
+        lights=[render.DirectionalLight((0.3, -1.0, -0.2), 2.0)]),
+    "area lights, a quad and a sphere": lambda: _sphere_on_floor(
+        _PLASTIC, environment=False,
+        shapes=[render.rectangle(np.diag([0.3, 0.3, 0.3, 1.0]) @ _above(3.0), None,
+                                 emission=(40.0, 40.0, 40.0), sides="both"),
+                render.Sphere((2.0, 1.5, -1.0), 0.3, "lambert", emission=(8.0, 6.0, 3.0))]),
+    "cornell box": lambda: render.builtin("cornell"),
 }
+
+
+def _above(height):
+    """A matrix turning the rectangle to face down, at ``height``."""
+    m = np.eye(4)
+    m[1, 1] = m[2, 2] = -1.0
+    m[:3, 3] = (0.0, height, 0.0)
+    return m
 
 
 @pytest.mark.parametrize("name", list(SCENES))
@@ -97,18 +125,19 @@ def _covered(scene, strategy=I.MIS):
 
 
 def test_what_the_blocks_leave_to_the_packet():
-    """Area and point lights, triangles, textures, other lobes, a Fresnel term, many shapes
-    and estimators other than MIS are the packet's."""
+    """Triangles, textures, measured tables, other lobes, a Fresnel term, many shapes, no
+    light and estimators other than MIS are the packet's."""
     assert _covered(SCENES["ggx furnace"]())
     assert not _covered(SCENES["ggx furnace"](), strategy=I.BSDF)
-    assert not _covered(render.builtin("cornell"))
+    assert not _covered(SCENES["ggx furnace"](), strategy=I.LIGHT)
+    assert not _covered(_sphere_on_floor("lambert", environment=False))
     assert not _covered(_sphere_on_floor("beckmann(alpha=0.2)"))
     assert not _covered(_sphere_on_floor("ggx(alpha=0.2, fresnel=schlick)"))
     assert not _covered(_sphere_on_floor("lambert + ggx(alpha=0.1) + ggx(alpha=0.5)"))
     assert not _covered(_sphere_on_floor("mirror"))
-    lit = _sphere_on_floor("lambert")
-    lit.lights.append(render.PointLight((0.0, 3.0, 0.0), 5.0))
-    assert not _covered(lit)
+    textured = _sphere_on_floor(render.Material(
+        brdf.parse("lambert"), {"lambert.albedo": np.full((4, 4, 3), 0.5)}))
+    assert not _covered(textured)
     many = _sphere_on_floor("lambert")
     many.shapes += [render.Sphere((3.0 * i, 0.0, -5.0), 0.5, "lambert")
                     for i in range(I.BLOCK_PRIMS)]
