@@ -1021,20 +1021,31 @@ def trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, n
 
 #: Paths per block.
 BLOCK = 64
+#: Packed parameters of a material the blocks cover, at most: Lambert's albedo (3) and a GGX
+#: lobe's ks (3), roughness (2), masking and Fresnel term (7).
+PARAMS_MAX = 16
 #: Primitives at most in a scene traced in blocks: each is tested against every ray, where the
 #: packet's tree skips most of them.
 BLOCK_PRIMS = 32
 #: Whether :func:`render_pass` traces the scenes that :func:`block_scene` covers in blocks
 #: (else in the packet, as every other scene; tests compare the two).
 use_blocks = True
-#: Columns of the block tracer's primitive table: whether it is a sphere, its centre and
-#: radius (a sphere's), its normal and tangent (a quad's), its material's row of the lobes,
-#: the light it is (-1: none).
-PT_SPHERE, PT_C, PT_R, PT_N, PT_T, PT_MAT, PT_LIGHT, PRIM_COLS = 0, 1, 4, 5, 8, 11, 12, 13
+#: Columns of the block tracer's primitive table: whether it is a sphere, its centre (a
+#: quad's corner) and radius (a sphere's), its normal, tangent and dual vectors (a quad's: its
+#: texture coordinates are (p - corner) . q1 and . q2), its material's row of the lobes, the
+#: light it is (-1: none).
+PT_SPHERE, PT_C, PT_R, PT_N, PT_T, PT_Q1, PT_Q2, PT_MAT, PT_LIGHT, PRIM_COLS = (
+    0, 1, 4, 5, 8, 11, 14, 17, 18, 19)
 #: Columns of the block tracer's lobe table (:func:`block_scene`): whether the Lambertian lobe
 #: comes first in the material's mixture, its albedo, GGX's ks, roughness and masking (1:
-#: separable), whether the material is traced at all (0: no material, the path ends there).
-LOBE_FIRST, KD, KS, ALPHA_X, ALPHA_Y, SEPARABLE, SHADED, LOBE_COLS = 0, 1, 4, 7, 8, 9, 10, 11
+#: separable), whether the material is traced at all (0: no material, the path ends there),
+#: whether textures bind its parameters, and where its Lambertian and GGX lobes' parameters
+#: start in its packed row (-1: no such lobe; :func:`._materials.material_params`).
+LOBE_FIRST, KD, KS, ALPHA_X, ALPHA_Y, SEPARABLE, SHADED, TEXTURED, OFF_L, OFF_G, LOBE_COLS = (
+    0, 1, 4, 7, 8, 9, 10, 11, 12, 13, 14)
+#: The lobe parameters a lane carries (:func:`_block_params`), textures applied: the columns
+#: KD to ALPHA_Y of the lobe table.
+LANE_PARAMS = ALPHA_Y + 1 - KD
 #: rows of a block's work space (stack_array(1, BLOCK, BLOCK_ROWS)), a lane per path in flight
 BLOCK_LAYOUT = (
     ("BO", 3, "the ray's origin"),
@@ -1054,6 +1065,7 @@ BLOCK_LAYOUT = (
     ("BB", 3, "its bitangent"),
     ("BQ", 3, "the next rays' origin"),
     ("BMAT", 1, "its material's row of the lobe table"),
+    ("BPAR", LANE_PARAMS, "its lobes' parameters there (KD to ALPHA_Y of the lobe table)"),
     ("BSHADED", 1, "1 where the path shades its vertex, 2 where that is its first"),
     ("BL", 3, "the light sample's unit direction (world)"),
     ("BLI", 3, "its radiance, then what it adds to the path's if the shadow ray gets through"),
@@ -1063,7 +1075,7 @@ BLOCK_LAYOUT = (
     ("BW", 3, "the BSDF sample's weight f cos / pdf"),
 )
 ((BO, BD, BT, BHIT, BTHR, BRAD, BPREV, BLIVE, BDEPTH, BPX, BSTATE, BU, BN, BA, BB, BQ, BMAT,
-  BSHADED, BL, BLI, BLEN, BREACH, BPICK, BW), BLOCK_ROWS) = _offsets(BLOCK_LAYOUT)
+  BPAR, BSHADED, BL, BLI, BLEN, BREACH, BPICK, BW), BLOCK_ROWS) = _offsets(BLOCK_LAYOUT)
 #: The rows a path carries from vertex to vertex (the first ones): what compaction moves.
 CARRIED = BU
 
@@ -1072,7 +1084,7 @@ def block_scene(geo, mats, lights, opts):
     """The tables :func:`trace_blocks` takes, ``(lobes, prims)``, or None where the blocks do
     not cover the render: a scene of 1 to BLOCK_PRIMS spheres and quads (no triangles) with at
     least one light, MIS, and every material a Lambertian lobe, a GGX lobe without a Fresnel
-    term, or one of each, without textures. ``lobes`` has
+    term, or one of each, textures binding any of their parameters but masking. ``lobes`` has
     a row per material (LOBE_COLS) and a last one of zeros for shapes without one; ``prims``
     a row per primitive (PRIM_COLS)."""
     prim = geo.prim
@@ -1082,7 +1094,7 @@ def block_scene(geo, mats, lights, opts):
     mint = mats.mint
     lobes = np.zeros((mint.shape[0] + 1, LOBE_COLS))
     for m in range(mint.shape[0]):
-        if mint[m, TYPE] != MODEL or mint[m, B1] > mint[m, B0]:
+        if mint[m, TYPE] != MODEL:
             return None
         kinds = [int(k) for k in mats.kinds[mint[m, K0]:mint[m, K1]]]
         offs = mats.offs[mint[m, O0]:mint[m, O1]]
@@ -1103,6 +1115,16 @@ def block_scene(geo, mats, lights, opts):
             else:
                 row[KS:KS + 3], row[ALPHA_X], row[ALPHA_Y] = q[:3], q[3], q[4]
                 row[SEPARABLE] = float(q[5] == 0.0)
+        # textures may bind a Lambertian albedo, a GGX lobe's ks and roughness
+        row[OFF_L] = row[OFF_G] = -1.0
+        for l, kind in enumerate(kinds):
+            row[OFF_L if kind == _kinds.LAMBERT else OFF_G] = offs[l]
+        row[TEXTURED] = float(mint[m, B1] > mint[m, B0])
+        for b in range(mint[m, B0], mint[m, B1]):
+            slot = mats.bind[b, 1]
+            l = int(np.searchsorted(offs, slot, side="right")) - 1
+            if slot - offs[l] >= (3 if kinds[l] == _kinds.LAMBERT else 5):
+                return None
     prims = np.zeros((prim.shape[0], PRIM_COLS))
     for i, (kind, j, m, light) in enumerate(prim):
         if kind == SPHERE:
@@ -1110,7 +1132,9 @@ def block_scene(geo, mats, lights, opts):
             prims[i, PT_C:PT_C + 3], prims[i, PT_R] = geo.sph[j, :3], geo.sph[j, 3]
         else:
             prims[i, PT_R] = 1.0  # a quad's lanes divide by it too, then select its normal
+            prims[i, PT_C:PT_C + 3] = geo.quad[j, 0]
             prims[i, PT_N:PT_N + 3], prims[i, PT_T:PT_T + 3] = geo.quad[j, 3], geo.quad[j, 6]
+            prims[i, PT_Q1:PT_Q1 + 3], prims[i, PT_Q2:PT_Q2 + 3] = geo.quad[j, 4], geo.quad[j, 5]
         prims[i, PT_MAT] = m if m >= 0 else mint.shape[0]
         prims[i, PT_LIGHT] = light
     return lobes, prims
@@ -1359,6 +1383,47 @@ def _block_surface(opts, lobes, pt, s, m):
 
 
 @inline_kernel
+def _block_params(mats, lobes, pt, s, m, textured):
+    """Every lane's lobe parameters (rows BPAR): its material's; with ``textured``, those that
+    textures bind at a shading vertex of a textured material, looked up there lane by lane
+    (:func:`._materials.material_params`, at the texture coordinates :func:`_surface` gives:
+    a quad's (a, b), a sphere's longitude and latitude)."""
+    for k in range(m):
+        mat = int(s[0, k, BMAT])
+        for c in range(LANE_PARAMS):
+            s[0, k, BPAR + c] = lobes[mat, KD + c]
+    if not textured:
+        return
+    row = stack_array(1, PARAMS_MAX, 1)
+    for k in range(m):
+        mat = int(s[0, k, BMAT])
+        if s[0, k, BSHADED] == 0.0 or lobes[mat, TEXTURED] == 0.0:
+            continue
+        i = int(s[0, k, BHIT])
+        t = s[0, k, BT]
+        px = s[0, k, BO] + t * s[0, k, BD]
+        py = s[0, k, BO + 1] + t * s[0, k, BD + 1]
+        pz = s[0, k, BO + 2] + t * s[0, k, BD + 2]
+        if pt[i, PT_SPHERE] != 0.0:
+            nx, ny, nz = _block_normal(pt, i, px, py, pz)
+            u = sampling.arctan2(ny, nx) / (2.0 * math.pi)
+            u = u + 1.0 if u < 0.0 else u
+            v = 1.0 - sampling.arccos(nz) / math.pi
+        else:
+            hx, hy, hz = px - pt[i, PT_C], py - pt[i, PT_C + 1], pz - pt[i, PT_C + 2]
+            u = hx * pt[i, PT_Q1] + hy * pt[i, PT_Q1 + 1] + hz * pt[i, PT_Q1 + 2]
+            v = hx * pt[i, PT_Q2] + hy * pt[i, PT_Q2 + 1] + hz * pt[i, PT_Q2 + 2]
+        material_params(mats, mat, u, v, row[0, :, 0])
+        ol, og = int(lobes[mat, OFF_L]), int(lobes[mat, OFF_G])
+        if ol >= 0:
+            for c in range(3):
+                s[0, k, BPAR + c] = row[0, ol + c, 0]
+        if og >= 0:
+            for c in range(5):
+                s[0, k, BPAR + KS - KD + c] = row[0, og + c, 0]
+
+
+@inline_kernel
 def _block_light_samples(lights, geo, s, m):
     """The next-event sample of every path that shades (see :func:`_vertices`): a light picked
     by :func:`._lights.pick_light`, a direction towards it, its radiance and density, the
@@ -1441,9 +1506,9 @@ def _block_shade(opts, lobes, s, m):
         # hints, lambert.hint_ and microfacet.hint_ without a Fresnel term: the albedo's and
         # ks's channel means where v is above the surface; mixture_selection)
         row = lobes[int(s[0, k, BMAT])]
-        kd0, kd1, kd2, ks0, ks1, ks2 = row[KD], row[KD + 1], row[KD + 2], row[KS], row[KS + 1], \
-            row[KS + 2]
-        alx, aly, sep = row[ALPHA_X], row[ALPHA_Y], row[SEPARABLE] != 0.0
+        kd0, kd1, kd2 = s[0, k, BPAR], s[0, k, BPAR + 1], s[0, k, BPAR + 2]
+        ks0, ks1, ks2 = s[0, k, BPAR + 3], s[0, k, BPAR + 4], s[0, k, BPAR + 5]
+        alx, aly, sep = s[0, k, BPAR + 6], s[0, k, BPAR + 7], row[SEPARABLE] != 0.0
         hd = (kd0 + kd1 + kd2) / 3.0 if vz > 0.0 else 0.0
         hs = (ks0 + ks1 + ks2) / 3.0 if vz > 0.0 else 0.0
         total = max(hd, 0.0) + max(hs, 0.0)
@@ -1498,7 +1563,8 @@ def _block_shade(opts, lobes, s, m):
         ok = ok & ((not roulette) | (s[0, k, BU + ROULETTE] < keep))
         d = keep if roulette else 1.0
         s[0, k, BTHR], s[0, k, BTHR + 1], s[0, k, BTHR + 2] = t0 / d, t1 / d, t2 / d
-        s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = s[0, k, BQ], s[0, k, BQ + 1], s[0, k, BQ + 2]
+        for c in range(3):
+            s[0, k, BO + c] = s[0, k, BQ + c]
         s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = wx, wy, wz
         s[0, k, BPREV] = pdf
         s[0, k, BDEPTH] = depth
@@ -1524,16 +1590,18 @@ def _block_idle(s, m):
 
 
 @inline_kernel
-def _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums):
+def _block_tile(cam, opts, geo, mats, lights, lobes, pt, seed, tile, s0, total, sums):
     """Trace the tile's ``total`` pairs in blocks of BLOCK paths, each block vertex by vertex
     until its last path ends. The paths still in flight are kept in the first lanes
     (:func:`_block_compact`), so that the passes over the vertices run over those alone as
     paths end at different depths. The order of everything is fixed by the tile."""
     s = stack_array(1, BLOCK, BLOCK_ROWS)
     layers = opts[LAYERS] != 0
-    emitters = False
+    emitters = textured = False
     for i in range(pt.shape[0]):
         emitters |= pt[i, PT_LIGHT] >= 0.0
+    for i in range(lobes.shape[0]):
+        textured |= lobes[i, TEXTURED] != 0.0
     for start in range(0, total, BLOCK):
         m = min(BLOCK, total - start)
         _block_launch(cam, opts, seed, tile, s0, start, m, s)
@@ -1560,6 +1628,7 @@ def _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums):
                     s[0, k, BU + u] = _number(st)
                 s[0, k, BSTATE] = float(st >> np.uint64(32))
                 s[0, k, BSTATE + 1] = float(st & _LOW32)
+            _block_params(mats, lobes, pt, s, mm, textured)
             _block_light_samples(lights, geo, s, mm)
             _block_shade(opts, lobes, s, mm)
             if layers:
@@ -1577,7 +1646,7 @@ def _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums):
 
 
 @nogil_kernel
-def trace_blocks(cam, opts, geo, lights, lobes, pt, seed, s0, s1, sums, queue):
+def trace_blocks(cam, opts, geo, mats, lights, lobes, pt, seed, s0, s1, sums, queue):
     """:func:`trace_tiles` for the scenes that :func:`block_scene` covers: each tile's pairs
     through a block of BLOCK lanes (:func:`_block_tile`), in an order fixed by the tile, so that
     an image is the same whatever the number of threads."""
@@ -1591,7 +1660,7 @@ def trace_blocks(cam, opts, geo, lights, lobes, pt, seed, s0, s1, sums, queue):
         x0, y0 = (k % tx_n) * size, (k // tx_n) * size
         tile = (x0, y0, min(x0 + size, w), min(y0 + size, h))
         total = (tile[2] - x0) * (tile[3] - y0) * (s1 - s0)
-        _block_tile(cam, opts, geo, lights, lobes, pt, seed, tile, s0, total, sums)
+        _block_tile(cam, opts, geo, mats, lights, lobes, pt, seed, tile, s0, total, sums)
 
 
 def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=None):
@@ -1618,7 +1687,8 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
 
     def work():
         if blocks is not None:
-            trace_blocks(cam, opts, geo, lights, blocks[0], blocks[1], seed, s0, s1, sums, queue)
+            trace_blocks(cam, opts, geo, mats, lights, blocks[0], blocks[1], seed, s0, s1, sums,
+                         queue)
         else:
             trace_tiles(cam, opts, geo, mats, lights, seed, s0, s1, sums, grad, queue, nparams,
                         nlobes, clock)
