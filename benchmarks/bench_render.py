@@ -41,9 +41,12 @@ Prints per scene samples (paths) per second of each, the best of ``--repeats`` r
 in turns (ours, theirs, ours, ...), the ratio of the bests, the median and range of the
 turn-by-turn ratios, and the relative difference of the mean images (goal: within 0.2 %):
 of the first render's, and its mean and standard error over every turn (each renders a new
-seed in both); then a table of all the scenes. With ``--stages``, one more render of ours per
-scene times the path tracer's stages in its kernels (``render(..., stats=True)``, x86-64),
-and a last table gives each stage's CPU nanoseconds per sample, scene by scene.
+seed in both); then a table of all the scenes, ``*`` marking those that ours traces in
+blocks of SIMD lanes (``render.traced_in_blocks``). With ``--stages``, one more render of ours
+per scene times the path tracer's stages in its kernels (``render(..., stats=True)``,
+x86-64), and a last table gives each stage's CPU nanoseconds per sample, scene by scene: the
+stages of the packet of paths, which traces every scene when timed (the scenes marked ``*``
+ran in blocks in the timed renders).
 """
 
 import argparse
@@ -351,7 +354,8 @@ def bench(name, args, mi, depot):
     # by a few tenths of a per cent, as much as the goal
     diffs = (np.array(means) - np.array(mmeans)) / np.maximum(np.array(mmeans), 1e-12)
     worst = int(np.argmax(np.abs(diffs.mean(axis=0))))
-    fig = {"name": name, "ours": n / min(times), "theirs": n / min(mtimes),
+    fig = {"name": name, "blocks": render.traced_in_blocks(scene),
+           "ours": n / min(times), "theirs": n / min(mtimes),
            "best": min(mtimes) / min(times), "median": statistics.median(pairs),
            "low": pairs[0], "high": pairs[-1], "same": same,
            "rel": float(diffs[:, worst].mean()),
@@ -405,10 +409,12 @@ def main():
         for name in names:
             figures.append(bench(name, args, mi, depot))
     print(f"\n{'scene':10s} {'brdf M/s':>9s} {'mitsuba M/s':>12s} {'best/best':>10s} "
-          f"{'median':>7s} {'range':>11s} {'mean diff +- standard error':>28s}")
+          f"{'median':>7s} {'range':>11s} {'mean diff +- standard error':>28s}   "
+          f"(*: traced in blocks)")
     for f in figures:
         diff = f"{100 * f['rel']:+.3f} +- {100 * f['se']:.3f} %" if f["same"] else "n/a"
-        print(f"{f['name']:10s} {f['ours'] / 1e6:9.2f} {f['theirs'] / 1e6:12.2f} "
+        print(f"{f['name'] + ' *' * f['blocks']:10s} {f['ours'] / 1e6:9.2f} "
+              f"{f['theirs'] / 1e6:12.2f} "
               f"{f['best']:9.2f}x {f['median']:6.2f}x {f['low']:5.2f}-{f['high']:4.2f}x "
               f"{diff:>28s}")
     if args.stages:
@@ -424,7 +430,8 @@ def main():
                                                  for s in stages)
                   + f" {1e9 * st.thread_seconds / n:7.1f} {1e9 * os.cpu_count() / f['theirs']:8.1f}"
                   + f" {st.shaded / n:7.3f}")
-        print("(shaded: vertices shaded a sample)")
+        print("(shaded: vertices shaded a sample; the stages are the packet's, which traces "
+              "every scene when timed)")
         by_name = {f["name"]: f for f in figures}
         if "furnace" in by_name and "void" in by_name:
             # a sample of the furnace is the void's path plus its vertices (one at most a

@@ -36,7 +36,7 @@ from .stats import CLOCK_ROWS, RenderStats, from_clock
 __all__ = ["render", "RenderResult", "Scene", "Camera", "Sphere", "Quad", "Mesh", "box",
            "rectangle", "Material", "PointLight", "SpotLight", "DirectionalLight",
            "GoniometricLight", "Environment", "builtin", "load", "validate", "BUILTIN",
-           "STRATEGIES", "Derivatives", "RenderStats"]
+           "STRATEGIES", "Derivatives", "RenderStats", "traced_in_blocks"]
 
 STRATEGIES = {"mis": 0, "bsdf": 1, "light": 2}
 #: Pixels along a side of the square tiles that the threads share out. A tile's packet runs
@@ -141,6 +141,26 @@ def _options(size, spp, max_depth, rr_depth, strategy, threads):
     if threads is not None:
         threads = integer(threads, "render: threads", 1)
     return w, h, spp, depth, rr_depth, threads
+
+
+def traced_in_blocks(scene, strategy="mis"):
+    """Whether :func:`render` traces ``scene`` (a :class:`Scene`) in blocks of SIMD lanes, the
+    faster of its two tracers (see ``docs/guide/rendering.md``), rather than in the packet of
+    paths: True for scenes of up to 32 spheres and quads whose materials are a Lambertian lobe,
+    a GGX lobe without a Fresnel term, or one of each, with at least one light, rendered with
+    ``strategy="mis"`` and without derivative images or ``stats``. Both give the same image
+    to rounding."""
+    from ._integrator import STRATEGY, block_scene
+    if not isinstance(scene, Scene):
+        raise InputError(f"traced_in_blocks: scene must be a brdf.render.Scene, got "
+                         f"{type(scene).__name__}")
+    if not isinstance(strategy, str) or strategy not in STRATEGIES:
+        raise InputError(f"traced_in_blocks: strategy must be one of {', '.join(STRATEGIES)}, "
+                         f"got {shown(strategy)}")
+    compiled = scene.compile()
+    opts = np.zeros(STRATEGY + 1, np.int64)
+    opts[STRATEGY] = STRATEGIES[strategy]
+    return block_scene(compiled.geo, compiled.mats, compiled.lights, opts) is not None
 
 
 def _seed(seed):

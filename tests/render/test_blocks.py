@@ -37,10 +37,7 @@ def _sky():
 
 def _both(scene, **kw):
     """The same render by the blocks and by the packet; checks the blocks cover it."""
-    compiled = scene.compile()
-    opts = np.zeros(11, np.int64)
-    opts[I.STRATEGY] = I.MIS
-    assert I.block_scene(compiled.geo, compiled.mats, compiled.lights, opts) is not None
+    assert render.traced_in_blocks(scene)
     out = []
     for flag in (True, False):
         old, I.use_blocks = I.use_blocks, flag
@@ -131,19 +128,16 @@ def test_blocks_same_seed_same_bytes_any_thread_count():
     assert one.variance.tobytes() == two.variance.tobytes()
 
 
-def _covered(scene, strategy=I.MIS):
-    compiled = scene.compile()
-    opts = np.zeros(11, np.int64)
-    opts[I.STRATEGY] = strategy
-    return I.block_scene(compiled.geo, compiled.mats, compiled.lights, opts) is not None
+def _covered(scene, strategy="mis"):
+    return render.traced_in_blocks(scene, strategy)
 
 
 def test_what_the_blocks_leave_to_the_packet():
     """Triangles, measured tables, other lobes, a Fresnel term, many shapes, no light and
     estimators other than MIS are the packet's."""
     assert _covered(SCENES["ggx furnace"]())
-    assert not _covered(SCENES["ggx furnace"](), strategy=I.BSDF)
-    assert not _covered(SCENES["ggx furnace"](), strategy=I.LIGHT)
+    assert not _covered(SCENES["ggx furnace"](), strategy="bsdf")
+    assert not _covered(SCENES["ggx furnace"](), strategy="light")
     assert not _covered(_sphere_on_floor("lambert", environment=False))
     assert not _covered(_sphere_on_floor("beckmann(alpha=0.2)"))
     assert not _covered(_sphere_on_floor("ggx(alpha=0.2, fresnel=schlick)"))
@@ -169,3 +163,11 @@ def test_derivatives_and_stats_stay_with_the_packet():
     assert np.abs(r.derivatives).max() > 0.0
     s = render.render(scene, spp=1, size=8, progress=False, stats=True)
     assert s.stats.shaded > 0
+
+
+def test_traced_in_blocks_refuses_what_is_not_a_scene_or_a_strategy():
+    from brdf.errors import InputError
+    with pytest.raises(InputError, match="must be a brdf.render.Scene"):
+        render.traced_in_blocks("cornell")
+    with pytest.raises(InputError, match="strategy must be one of"):
+        render.traced_in_blocks(render.builtin("cornell"), strategy="both")
