@@ -104,7 +104,8 @@ def render(args, out):
     from brdf import render as R
     refuse_existing(args, args.output, args.preview)
     png = args.output.lower().endswith(".png")
-    result = R.render(_scene(args.scene, load_subject(args.material)), spp=args.spp, size=args.size,
+    scene = _scene(args.scene, load_subject(args.material))
+    result = R.render(scene, spp=args.spp, size=args.size,
                       seed=args.seed, max_depth=args.max_depth, strategy=args.strategy,
                       threads=args.threads, stats=args.stats,
                       layers=args.layers and not png)  # a PNG has no layers to write
@@ -116,7 +117,7 @@ def render(args, out):
         result.preview(args.preview, args.exposure, force=args.force)
     stats = {"output": args.output, "scene": args.scene, "size": list(args.size),
              "spp": args.spp, "seed": args.seed, "seconds": result.seconds,
-             "compile_seconds": result.compile_seconds,
+             "compile_seconds": result.compile_seconds, "tracer": result.tracer,
              "samples_per_second": result.samples_per_second,
              "mean": [float(x) for x in result.image.mean(axis=(0, 1))]}
     if result.stats is not None:
@@ -125,10 +126,14 @@ def render(args, out):
         out.json(stats)
     else:
         out.text(f"{args.output}: {args.size[0]} x {args.size[1]}, {args.spp} spp, "
-                 f"{result.seconds:.2f} s ({result.samples_per_second / 1e6:.2f} M samples/s), "
+                 f"{result.seconds:.2f} s ({result.samples_per_second / 1e6:.2f} M samples/s, "
+                 f"traced in {'blocks' if result.tracer == 'blocks' else 'the packet'}), "
                  f"mean RGB {', '.join(f'{x:.4g}' for x in stats['mean'])}")
         if result.stats is not None:
             out.text(result.stats.table())
+            if R.traced_in_blocks(scene, args.strategy):
+                out.text("(the packet's stages: without --stats this scene is traced in "
+                         "blocks, the same image to rounding)")
     return EXIT_OK
 
 

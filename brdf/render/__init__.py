@@ -81,6 +81,9 @@ class RenderResult:
         parameters.
     stats : RenderStats or None
         Where the sampling's time went, stage by stage (``render(..., stats=True)``).
+    tracer : str
+        Which of the path tracer's kernels traced the paths: ``"blocks"`` (blocks of SIMD
+        lanes; see :func:`traced_in_blocks`) or ``"packet"``.
     """
 
     image: np.ndarray
@@ -93,6 +96,7 @@ class RenderResult:
     compile_seconds: float
     derivatives: Optional[np.ndarray] = None
     stats: Optional[RenderStats] = None
+    tracer: str = "packet"
 
     @property
     def samples_per_second(self):
@@ -281,8 +285,9 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
             chunk = max(1, min(int(spp), PASS_PATHS // max(w * h, 1)))
             for s0 in range(0, int(spp), chunk):
                 s1 = min(int(spp), s0 + chunk)
-                render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov),
-                            None if derivatives is None else Gradient(slots, dacc), clock)
+                in_blocks = render_pass(*args, opts, seed, s0, s1, Sums(acc, acc2, aov),
+                                        None if derivatives is None else Gradient(slots, dacc),
+                                        clock)
                 meter.update(s1 - s0)
             seconds = time.perf_counter() - t0
         timed = None
@@ -293,9 +298,10 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     n = float(spp)
     mean = acc / n
     grad = dacc / n if derivatives is not None else None
+    tracer = "blocks" if in_blocks else "packet"
     if not layers:
         return RenderResult(mean, None, None, None, int(spp), seed, seconds, compile_seconds,
-                            grad, timed)
+                            grad, timed, tracer)
     var = np.maximum(acc2 / n - mean * mean, 0.0) / max(n - 1.0, 1.0)
     return RenderResult(mean, var, aov[..., :3] / n, aov[..., 3:] / n, int(spp), seed, seconds,
-                        compile_seconds, grad, timed)
+                        compile_seconds, grad, timed, tracer)

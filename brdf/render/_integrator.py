@@ -1675,7 +1675,9 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
     tiles from one queue; a tile's pixels are its own, so the sums do not depend on who traced
     it. Each thread takes the next tile as it finishes one: equal shares would wait on the
     slower core of a shared host, which can run 5-18 % slower than the other for seconds at a
-    time (measured per thread on the Cornell box)."""
+    time (measured per thread on the Cornell box). Returns whether the pass was traced in
+    blocks (:func:`trace_blocks`, for the scenes :func:`block_scene` covers, without
+    derivative images or a clock), else in the packet (:func:`trace_tiles`)."""
     tile = int(opts[TILE])
     ntiles = -(-int(opts[W]) // tile) * -(-int(opts[H]) // tile)
     nparams = max(mats.params.shape[0], 1)
@@ -1694,3 +1696,4 @@ def render_pass(cam, geo, mats, lights, opts, seed, s0, s1, sums, grad, clock=No
                         nlobes, clock)
 
     in_threads(max(1, min(int(opts[THREADS]), ntiles)), work)
+    return blocks is not None

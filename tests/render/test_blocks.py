@@ -163,6 +163,22 @@ def test_derivatives_and_stats_stay_with_the_packet():
     assert np.abs(r.derivatives).max() > 0.0
     s = render.render(scene, spp=1, size=8, progress=False, stats=True)
     assert s.stats.shaded > 0
+    assert r.tracer == s.tracer == "packet"
+    assert render.render(scene, spp=1, size=8, progress=False).tracer == "blocks"
+    assert render.render(scene, spp=1, size=8, progress=False, strategy="bsdf").tracer == "packet"
+
+
+def test_the_command_line_says_which_tracer(tmp_path):
+    from brdf_cli.main import main
+    import json
+    import contextlib
+    import io
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["render", "lambert + ggx(alpha=0.2)", "--scene", "furnace", "--spp", "1",
+                     "--size", "8x8", "-o", str(tmp_path / "f.exr"), "--json", "-q"])
+    assert code == 0
+    assert json.loads(buf.getvalue())["tracer"] == "blocks"
 
 
 def test_traced_in_blocks_refuses_what_is_not_a_scene_or_a_strategy():
