@@ -72,6 +72,8 @@ SCENES = {
         shapes=[render.rectangle(np.diag([0.3, 0.3, 0.3, 1.0]) @ _above(3.0), None,
                                  emission=(40.0, 40.0, 40.0), sides="both"),
                 render.Sphere((2.0, 1.5, -1.0), 0.3, "lambert", emission=(8.0, 6.0, 3.0))]),
+    "goniometric light": lambda: _sphere_on_floor(
+        _PLASTIC, environment=False, lights=[_goniometric()]),
     "cornell box": lambda: render.builtin("cornell"),
     "textures on a sphere and a floor": lambda: _sphere_on_floor(
         render.Material(brdf.parse("ggx(alpha=0.3, ks=0.8) + lambert(albedo=0.2)"),
@@ -80,6 +82,14 @@ SCENES = {
         floor=render.Material(brdf.parse("lambert"), {"lambert.albedo": _pattern(3, 0.0, 1.0)}),
         lights=[render.PointLight((1.0, 3.0, 1.0), 20.0)]),
 }
+
+
+def _goniometric():
+    """A light brighter towards its nadir and to one side."""
+    theta = np.array([0.0, 45.0, 90.0, 135.0, 180.0])
+    phi = np.array([0.0, 90.0, 180.0, 270.0, 360.0])
+    table = np.outer(0.6 + 0.5 * np.cos(np.radians(theta)), 1.0 + 0.3 * np.sin(np.radians(phi)))
+    return render.GoniometricLight((0.5, 3.0, 1.0), table, theta, phi, intensity=15.0)
 
 
 def _pattern(channels, lo, hi):
