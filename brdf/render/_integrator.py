@@ -1179,6 +1179,22 @@ def _block_hits(geo, s, m, shadow):
 
 
 @inline_kernel
+def _padded(m):
+    """m lanes rounded up to whole SIMD registers (eight lanes: AVX-512), so that a pass over
+    them runs without a scalar remainder."""
+    return min(BLOCK, (m + 7) // 8 * 8)
+
+
+@inline_kernel
+def _block_idle(s, m):
+    """Lanes m to :func:`_padded` (m) made idle (no path, no hit); returns their end."""
+    mm = _padded(m)
+    for k in range(m, mm):
+        s[0, k, BLIVE], s[0, k, BT] = 0.0, math.inf
+    return mm
+
+
+@inline_kernel
 def _block_launch(cam, opts, seed, tile, s0, start, n, s):
     """Start the paths of the tile's pairs ``start`` to ``start + n`` (pixel-major within a
     sample, as :func:`_launch`) in lanes 0 to n - 1: each pair's stream, jitter and camera
@@ -1257,36 +1273,29 @@ def _block_compact(s, m, sums, layers):
 @inline_kernel
 def _block_seen(s, k, le0, le1, le2, epdf, pick):
     """Lane k's share of :func:`_block_escaped`, with the environment's radiance and density
-    along its ray; whether its ray hit."""
-    live = s[0, k, BLIVE] > 0.0
-    hit = s[0, k, BT] < math.inf
+    along its ray."""
     w = _power(s[0, k, BPREV], pick * epdf)
-    seen = live & (not hit)
+    seen = (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] == math.inf)
     s[0, k, BRAD] += s[0, k, BTHR] * w * le0 if seen else 0.0
     s[0, k, BRAD + 1] += s[0, k, BTHR + 1] * w * le1 if seen else 0.0
     s[0, k, BRAD + 2] += s[0, k, BTHR + 2] * w * le2 if seen else 0.0
-    return live & hit
 
 
 @inline_kernel
 def _block_escaped(lights, s, m):
     """The environment seen by the paths whose rays escaped, weighed against next-event
-    estimation (see :func:`_escaped`), added to their radiance; returns the number of paths
-    whose rays hit. A constant environment is looked up once, outside the loop over the lanes:
-    the map's lookups in it kept it scalar."""
+    estimation (see :func:`_escaped`), added to their radiance. A constant environment is
+    looked up once, outside the loop over the lanes; a map along the escaped rays only, listed
+    without branches (its lookups kept a loop over every lane scalar)."""
     e = lights.env_light
-    hits = 0
     if e < 0:
-        for k in range(m):
-            hits += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
-        return hits
+        return
     pick = lights.pmf[e]
     if env_constant(lights, e):
         le0, le1, le2, epdf = env_lookup(lights, e, 0.0, 0.0, 1.0)
         for k in range(m):
-            hits += _block_seen(s, k, le0, le1, le2, epdf, pick)
-        return hits
-    # a map: looked up along the escaped rays only, listed without branches
+            _block_seen(s, k, le0, le1, le2, epdf, pick)
+        return
     lanes = stack_array(1, BLOCK, 1)
     looked = stack_array(1, BLOCK, 4)
     n = 0
@@ -1300,9 +1309,6 @@ def _block_escaped(lights, s, m):
     for i in range(n):
         _block_seen(s, int(lanes[0, i, 0]), looked[0, i, 0], looked[0, i, 1], looked[0, i, 2],
                     looked[0, i, 3], pick)
-    for k in range(m):
-        hits += (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
-    return hits
 
 
 @inline_kernel
@@ -1571,22 +1577,6 @@ def _block_shade(opts, lobes, s, m):
         s[0, k, BLIVE] = 1.0 if ok else 0.0
         going += ok
     return going
-
-
-@inline_kernel
-def _padded(m):
-    """m lanes rounded up to whole SIMD registers (eight lanes: AVX-512), so that a pass over
-    them runs without a scalar remainder."""
-    return min(BLOCK, (m + 7) // 8 * 8)
-
-
-@inline_kernel
-def _block_idle(s, m):
-    """Lanes m to :func:`_padded` (m) made idle (no path, no hit); returns their end."""
-    mm = _padded(m)
-    for k in range(m, mm):
-        s[0, k, BLIVE], s[0, k, BT] = 0.0, math.inf
-    return mm
 
 
 @inline_kernel
