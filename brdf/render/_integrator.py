@@ -800,17 +800,24 @@ def _bounce(opts, mis, layers, p, aov_acc, j):
 
 @inline_kernel
 def _settle(layers, fl, il, sums, j):
-    """Add the ended path j to its pixel's running sums (and its square's, if ``layers``) and
-    free its lane."""
-    x, y = il[PIXEL_X, j], il[PIXEL_Y, j]
+    """Add the ended path j to its pixel's running sums (:func:`_pixel_sums`) and free its
+    lane."""
+    _pixel_sums(layers, sums, il[PIXEL_X, j], il[PIXEL_Y, j], fl[RAD, j], fl[RAD + 1, j],
+                fl[RAD + 2, j])
+    il[ALIVE, j] = 0
+
+
+@inline_kernel
+def _pixel_sums(layers, sums, x, y, r0, r1, r2):
+    """Add a path's radiance (r0, r1, r2) to pixel (x, y)'s running sums, and its square's if
+    ``layers``; a degenerate path (NaN, inf) is dropped, not spread."""
     for c in range(3):
-        r = fl[RAD + c, j]
+        r = r0 if c == 0 else (r1 if c == 1 else r2)
         if r != r or r == math.inf:
-            r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
+            r = 0.0
         sums.acc[y, x, c] += r
         if layers:
             sums.acc2[y, x, c] += r * r
-    il[ALIVE, j] = 0
 
 
 @inline_kernel
@@ -1238,23 +1245,17 @@ def _block_launch(cam, opts, seed, tile, s0, start, n, s):
 
 @inline_kernel
 def _block_compact(s, m, sums, layers):
-    """Settle the paths in lanes 0 .. m - 1 that ended or whose rays escaped (see
-    :func:`_settle`), and move the others into their lanes, so that the paths that go on fill
-    lanes 0 .. m' - 1 and the passes over the vertices run over no lane without one (a lane
-    from the end into each gap: the order is fixed by the lanes alone). Returns m'."""
+    """Settle the paths in lanes 0 .. m - 1 that ended or whose rays escaped
+    (:func:`_pixel_sums`), and move the others into their lanes, so that the paths that go on
+    fill lanes 0 .. m' - 1 and the passes over the vertices run over no lane without one (a
+    lane from the end into each gap: the order is fixed by the lanes alone). Returns m'."""
     keep = stack_array(1, BLOCK, 1)
     for k in range(m):
         keep[0, k, 0] = (s[0, k, BLIVE] > 0.0) & (s[0, k, BT] < math.inf)
     for k in range(m):
         if keep[0, k, 0] == 0.0:
-            x, y = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
-            for c in range(3):
-                r = s[0, k, BRAD + c]
-                if r != r or r == math.inf:
-                    r = 0.0  # a degenerate path (NaN, inf) is dropped, not spread
-                sums.acc[y, x, c] += r
-                if layers:
-                    sums.acc2[y, x, c] += r * r
+            _pixel_sums(layers, sums, int(s[0, k, BPX]), int(s[0, k, BPX + 1]), s[0, k, BRAD],
+                        s[0, k, BRAD + 1], s[0, k, BRAD + 2])
     i, j = 0, m - 1
     while True:
         while i <= j and keep[0, i, 0] != 0.0:
