@@ -538,11 +538,10 @@ def draw_in_lanes(dist, ax, ay, ix, iy, iz, u1, u2):
 def sample_in_lanes(dist, q, nch, ix, iy, iz, u1, u2):
     """:func:`sample_`'s draw with selects where it branches, inlined into its caller: a loop
     over items that calls it runs in SIMD lanes for GGX (Beckmann's slope search branches).
-    Below the horizon (iz <= 0) its numbers are computed and dropped; pdf_ is 0 where oz <= 0.
+    Below the horizon (iz <= 0) its numbers are computed and dropped; the density is 0 where
+    oz <= 0 (:func:`draw_in_lanes`).
     (sample_ keeps its branches: as a call of this, its rounding moved under fast-math.)"""
-    hx, hy, hz = sample_visible_normal(dist, q[nch], q[nch + 1], ix, iy, iz, u1, u2)
-    ox, oy, oz = reflect_about(ix, iy, iz, hx, hy, hz)
-    pdf = pdf_(dist, q, nch, ix, iy, iz, ox, oy, oz)
+    ox, oy, oz, pdf = draw_in_lanes(dist, q[nch], q[nch + 1], ix, iy, iz, u1, u2)
     below = iz <= 0.0
     return 0.0 if below else ox, 0.0 if below else oy, 1.0 if below else oz, pdf
 
