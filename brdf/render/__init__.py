@@ -217,10 +217,10 @@ def render(scene, spp=64, size=(256, 256), seed=0, max_depth=8, rr_depth=5, stra
     stats : bool
         Also time the path tracer's stages in its own kernels (:class:`RenderStats`, in
         ``result.stats``; x86-64 only, whose time-stamp counter they read). The stages are
-        those of the packet of paths: a scene that the block tracer covers (see
-        ``docs/rendering.md``) is traced in the packet when timed, the same image to rounding;
-        any other scene's image is the same to the bit. The timing costs well under 1 % (a
-        second compile of the kernel the first time).
+        those of the packet of paths: a scene that the block tracer covers
+        (:func:`traced_in_blocks`) is traced in the packet when timed, the same image to
+        rounding; any other scene's image is the same to the bit. The timing costs well under
+        1 % (a second compile of the kernel the first time).
 
     Returns
     -------

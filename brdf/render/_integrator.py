@@ -174,6 +174,13 @@ def _offset(px, py, pz, nx, ny, nz, side):
     return px + side * eps * nx, py + side * eps * ny, pz + side * eps * nz
 
 
+@inline_kernel
+def _short_of(dist):
+    """The length of a shadow ray towards a light at distance ``dist``, stopped just short of
+    it so that the light's own surface does not block it (inf: a light at infinity)."""
+    return dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+
+
 @kernel(linked=OPTIMISED)
 def _power(a, b):
     """Veach's power heuristic with beta = 2 (Veach 1997, thesis, eq. 9.13) for density a."""
@@ -351,6 +358,61 @@ _LOW32 = np.uint64(0xFFFFFFFF)
 
 
 @inline_kernel
+def _step_pairs(tile, s0, x, y, smp, n, w, cx, cy, cs):
+    """The pixels and samples of the tile's next n pairs (pixel-major within a sample), from
+    the pair at column x, row y of the tile and sample s0 + smp, into ``w[0, i, cx]``,
+    ``w[0, i, cy]`` and ``w[0, i, cs]``; returns the pair after them. Stepped along, since
+    integer division costs tens of cycles."""
+    x0, y0, x1, y1 = tile
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    for i in range(n):
+        w[0, i, cx], w[0, i, cy], w[0, i, cs] = x0 + x, y0 + y, s0 + smp
+        x += 1
+        if x == tw:
+            x = 0
+            y += 1
+            if y * tw == npix:
+                y = 0
+                smp += 1
+    return x, y, smp
+
+
+@inline_kernel
+def _pair_at(tile, start):
+    """Column, row within the tile and sample (from the pass's first) of the tile's pair
+    ``start``: where :func:`_step_pairs` begins."""
+    x0, y0, x1, y1 = tile
+    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    k = start % npix
+    return k % tw, k // tw, start // npix
+
+
+@inline_kernel
+def _path_start(cam, seed, width, jitter, px, py, sample):
+    """A path's start: its stream's state after the jitter's two numbers (none without
+    ``jitter``: the pixel's centre) and its camera ray's direction."""
+    st = _stream(seed, py * width + px, sample)
+    a1 = st + _GOLDEN
+    a2 = a1 + _GOLDEN
+    jx = _number(a1) if jitter else 0.5
+    jy = _number(a2) if jitter else 0.5
+    dx, dy, dz = _camera_ray(cam, px, py, jx, jy)
+    return (a2 if jitter else st), dx, dy, dz
+
+
+@inline_kernel
+def _halves(st):
+    """A stream's state in two exact halves, for work space that holds float64."""
+    return float(st >> np.uint64(32)), float(st & _LOW32)
+
+
+@inline_kernel
+def _joined(hi, lo):
+    """The stream's state from its :func:`_halves`."""
+    return (np.uint64(hi) << np.uint64(32)) | np.uint64(lo)
+
+
+@inline_kernel
 def _launch(cam, opts, seed, tile, s0, start, lanes, n, p):
     """Start the paths of the tile's pairs ``start`` to ``start + n`` (pixel-major within a
     sample, so a packet's camera rays are neighbours) in the lanes ``lanes[:n]``: each
@@ -359,40 +421,20 @@ def _launch(cam, opts, seed, tile, s0, start, lanes, n, p):
     root and division of a ray's direction, and with 64-bit SIMD products its hashes, were
     a chain that a lane's start waited on, lane after lane); then into the lanes."""
     fl, il, state = p.fl, p.il, p.state
-    x0, y0, x1, y1 = tile
-    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
     jitter = opts[JITTER] != 0
     width = opts[W]
-    # the next pair's pixel and sample, stepped along (integer division costs tens of cycles)
-    k = start % npix
-    x, y, s = k % tw, k // tw, start // npix
+    x, y, s = _pair_at(tile, start)
     b = stack_array(1, LAUNCH_BLOCK, 8)
     for t0 in range(0, n, LAUNCH_BLOCK):
         m = min(LAUNCH_BLOCK, n - t0)
+        x, y, s = _step_pairs(tile, s0, x, y, s, m, b, 0, 1, 2)
         for i in range(m):
-            b[0, i, 0], b[0, i, 1], b[0, i, 2] = x0 + x, y0 + y, s0 + s
-            x += 1
-            if x == tw:
-                x = 0
-                y += 1
-                if y * tw == npix:
-                    y = 0
-                    s += 1
-        for i in range(m):
-            px, py = int(b[0, i, 0]), int(b[0, i, 1])
-            st = _stream(seed, py * width + px, int(b[0, i, 2]))
-            jx = jy = 0.5
-            if jitter:
-                st += _GOLDEN
-                jx = _number(st)
-                st += _GOLDEN
-                jy = _number(st)
-            b[0, i, 3], b[0, i, 4], b[0, i, 5] = _camera_ray(cam, px, py, jx, jy)
-            # the stream's state in two exact halves (the work space holds float64)
-            b[0, i, 6], b[0, i, 7] = float(st >> np.uint64(32)), float(st & _LOW32)
+            st, b[0, i, 3], b[0, i, 4], b[0, i, 5] = _path_start(
+                cam, seed, width, jitter, int(b[0, i, 0]), int(b[0, i, 1]), int(b[0, i, 2]))
+            b[0, i, 6], b[0, i, 7] = _halves(st)
         for i in range(m):
             j = lanes[t0 + i]
-            state[j] = (np.uint64(b[0, i, 6]) << np.uint64(32)) | np.uint64(b[0, i, 7])
+            state[j] = _joined(b[0, i, 6], b[0, i, 7])
             fl[O, j], fl[O + 1, j], fl[O + 2, j] = cam[0], cam[1], cam[2]
             fl[D, j], fl[D + 1, j], fl[D + 2, j] = b[0, i, 3], b[0, i, 4], b[0, i, 5]
             for c in range(3):
@@ -536,7 +578,7 @@ def _vertices(opts, geo, mats, lights, p):
                 shadows += 1
                 sh[ORIGIN, k], sh[ORIGIN + 1, k], sh[ORIGIN + 2, k] = qx, qy, qz
                 sh[DIRECTION, k], sh[DIRECTION + 1, k], sh[DIRECTION + 2, k] = ldx, ldy, ldz
-                sh[LENGTH, k] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+                sh[LENGTH, k] = _short_of(dist)
                 # in world space until _frames turns it into the local frame
                 q[PAIR, DRAWN, j], q[PAIR, DRAWN + 1, j], q[PAIR, DRAWN + 2, j] = (
                     ldx, ldy, ldz)
@@ -1113,19 +1155,17 @@ def block_scene(geo, mats, lights, opts):
         row[LOBE_FIRST] = float(kinds[0] == _kinds.LAMBERT)
         row[ALPHA_X] = row[ALPHA_Y] = 1.0  # a lobe of ks 0 is never picked nor counted
         row[SEPARABLE] = row[SHADED] = 1.0
+        row[OFF_L] = row[OFF_G] = -1.0
         for l, kind in enumerate(kinds):
             q = params[offs[l]:offs[l + 1]]
             if kind == _kinds.LAMBERT:
-                row[KD:KD + 3] = q[:3]
+                row[KD:KD + 3], row[OFF_L] = q[:3], offs[l]
             elif q[6] != fresnel.NONE:  # the layout of brdf.models.microfacet, 3 channels
                 return None
             else:
                 row[KS:KS + 3], row[ALPHA_X], row[ALPHA_Y] = q[:3], q[3], q[4]
-                row[SEPARABLE] = float(q[5] == 0.0)
+                row[SEPARABLE], row[OFF_G] = float(q[5] == 0.0), offs[l]
         # textures may bind a Lambertian albedo, a GGX lobe's ks and roughness
-        row[OFF_L] = row[OFF_G] = -1.0
-        for l, kind in enumerate(kinds):
-            row[OFF_L if kind == _kinds.LAMBERT else OFF_G] = offs[l]
         row[TEXTURED] = float(mint[m, B1] > mint[m, B0])
         for b in range(mint[m, B0], mint[m, B1]):
             slot = mats.bind[b, 1]
@@ -1162,27 +1202,36 @@ def _block_hits(geo, s, m, shadow):
         if prim[i, 0] == SPHERE:
             c = (geo.sph[j, 0], geo.sph[j, 1], geo.sph[j, 2], geo.sph[j, 3])
             for k in range(m):
-                tmax = s[0, k, BLEN] if shadow else s[0, k, BT]
                 t = hit_sphere(c, s[0, k, o], s[0, k, o + 1], s[0, k, o + 2], s[0, k, d],
-                               s[0, k, d + 1], s[0, k, d + 2], tmax)
-                if shadow:
-                    s[0, k, BLEN] = -1.0 if t > 0.0 else s[0, k, BLEN]
-                else:
-                    s[0, k, BT] = t if t > 0.0 else s[0, k, BT]
-                    s[0, k, BHIT] = float(i) if t > 0.0 else s[0, k, BHIT]
+                               s[0, k, d + 1], s[0, k, d + 2], _block_reach(s, k, shadow))
+                _block_hit(s, k, t if t > 0.0 else math.inf, i, shadow)
         else:
             g = geo.quad[j]
             plane = ((g[3, 0], g[3, 1], g[3, 2]), (g[0, 0], g[0, 1], g[0, 2]),
                      (g[4, 0], g[4, 1], g[4, 2]), (g[5, 0], g[5, 1], g[5, 2]), 0.0)
             for k in range(m):
-                tmax = s[0, k, BLEN] if shadow else s[0, k, BT]
                 t = plane_distance(plane, s[0, k, o], s[0, k, o + 1], s[0, k, o + 2],
-                                   s[0, k, d], s[0, k, d + 1], s[0, k, d + 2], tmax)
-                if shadow:
-                    s[0, k, BLEN] = -1.0 if t < math.inf else s[0, k, BLEN]
-                else:
-                    s[0, k, BT] = t if t < math.inf else s[0, k, BT]
-                    s[0, k, BHIT] = float(i) if t < math.inf else s[0, k, BHIT]
+                                   s[0, k, d], s[0, k, d + 1], s[0, k, d + 2],
+                                   _block_reach(s, k, shadow))
+                _block_hit(s, k, t, i, shadow)
+
+
+@inline_kernel
+def _block_reach(s, k, shadow):
+    """How far lane k's ray may go: its shadow ray's length, or its nearest hit so far."""
+    return s[0, k, BLEN] if shadow else s[0, k, BT]
+
+
+@inline_kernel
+def _block_hit(s, k, t, i, shadow):
+    """Lane k's ray met primitive i at distance t (inf: not within its reach): a shadow ray is
+    blocked (BLEN -1); another ray's nearest hit is this one (BT, BHIT)."""
+    met = t < math.inf
+    if shadow:
+        s[0, k, BLEN] = -1.0 if met else s[0, k, BLEN]
+    else:
+        s[0, k, BT] = t if met else s[0, k, BT]
+        s[0, k, BHIT] = float(i) if met else s[0, k, BHIT]
 
 
 @inline_kernel
@@ -1205,36 +1254,19 @@ def _block_idle(s, m):
 def _block_launch(cam, opts, seed, tile, s0, start, n, s):
     """Start the paths of the tile's pairs ``start`` to ``start + n`` (pixel-major within a
     sample, as :func:`_launch`) in lanes 0 to n - 1: each pair's stream, jitter and camera
-    ray. The pairs' pixels and samples are stepped along first (integer division costs tens
-    of cycles), then the rest runs in a loop without branches over whole SIMD registers (the
-    lanes past n get numbers that nothing reads)."""
-    x0, y0, x1, y1 = tile
-    tw, npix = x1 - x0, (x1 - x0) * (y1 - y0)
+    ray. The pairs' pixels and samples are stepped along first (:func:`_step_pairs`), then
+    the rest runs in a loop without branches over whole SIMD registers (the lanes past n get
+    numbers that nothing reads)."""
     jitter = opts[JITTER] != 0
     width = opts[W]
-    i0 = start % npix
-    x, y, smp = i0 % tw, i0 // tw, start // npix
-    for k in range(n):
-        s[0, k, BPX], s[0, k, BPX + 1], s[0, k, BT] = x0 + x, y0 + y, s0 + smp
-        x += 1
-        if x == tw:
-            x = 0
-            y += 1
-            if y * tw == npix:
-                y = 0
-                smp += 1
+    x, y, smp = _pair_at(tile, start)
+    _step_pairs(tile, s0, x, y, smp, n, s, BPX, BPX + 1, BT)
     for k in range(n, _padded(n)):
         s[0, k, BPX] = s[0, k, BPX + 1] = s[0, k, BT] = 0.0
     for k in range(_padded(n)):
-        px, py = int(s[0, k, BPX]), int(s[0, k, BPX + 1])
-        st = _stream(seed, py * width + px, int(s[0, k, BT]))
-        a1 = st + _GOLDEN
-        a2 = a1 + _GOLDEN
-        jx = _number(a1) if jitter else 0.5
-        jy = _number(a2) if jitter else 0.5
-        st = a2 if jitter else st
-        s[0, k, BSTATE], s[0, k, BSTATE + 1] = float(st >> np.uint64(32)), float(st & _LOW32)
-        s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = _camera_ray(cam, px, py, jx, jy)
+        st, s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2] = _path_start(
+            cam, seed, width, jitter, int(s[0, k, BPX]), int(s[0, k, BPX + 1]), int(s[0, k, BT]))
+        s[0, k, BSTATE], s[0, k, BSTATE + 1] = _halves(st)
         s[0, k, BO], s[0, k, BO + 1], s[0, k, BO + 2] = cam[0], cam[1], cam[2]
         s[0, k, BPREV] = math.inf  # the camera's ray: no MIS on what it sees
         s[0, k, BLIVE] = 1.0 if k < n else 0.0
@@ -1472,7 +1504,7 @@ def _block_light_samples(lights, geo, s, m):
             for c in range(3):
                 s[0, k, BLI + c] = li[0, c, 0]
             s[0, k, BLEN] = lpdf
-            s[0, k, BREACH] = dist * (1.0 - 1e-7) if dist < math.inf else math.inf
+            s[0, k, BREACH] = _short_of(dist)
     env_samples(lights, e, u, n, drawn)
     for a in range(n):
         k = int(lanes[0, a, 0])
@@ -1488,9 +1520,7 @@ def _block_shade(opts, lobes, s, m):
     """Every shading lane's BSDF (see :func:`_shade`, :func:`_bounce`): towards the light
     sample, f and the MIS weight, what the sample adds if its shadow ray gets through (into
     BLI; the ray's length into BLEN, -1 for none); the lobe picked, the BSDF sample, its weight
-    and density; the bounce, or the path's end. Every lane computes every lobe, and selects.
-    Returns the number of paths that go on."""
-    going = 0
+    and density; the bounce, or the path's end. Every lane computes every lobe, and selects."""
     for k in range(m):
         shaded = s[0, k, BSHADED] != 0.0
         dx, dy, dz = s[0, k, BD], s[0, k, BD + 1], s[0, k, BD + 2]
@@ -1576,8 +1606,6 @@ def _block_shade(opts, lobes, s, m):
         s[0, k, BPREV] = pdf
         s[0, k, BDEPTH] = depth
         s[0, k, BLIVE] = 1.0 if ok else 0.0
-        going += ok
-    return going
 
 
 @inline_kernel
@@ -1612,13 +1640,11 @@ def _block_tile(cam, opts, geo, mats, lights, lobes, pt, seed, tile, s0, total, 
                 continue
             # the vertex's numbers
             for k in range(mm):
-                st = ((np.uint64(s[0, k, BSTATE]) << np.uint64(32))
-                      | np.uint64(s[0, k, BSTATE + 1]))
+                st = _joined(s[0, k, BSTATE], s[0, k, BSTATE + 1])
                 for u in range(UNIFORMS):
                     st += _GOLDEN
                     s[0, k, BU + u] = _number(st)
-                s[0, k, BSTATE] = float(st >> np.uint64(32))
-                s[0, k, BSTATE + 1] = float(st & _LOW32)
+                s[0, k, BSTATE], s[0, k, BSTATE + 1] = _halves(st)
             _block_params(mats, lobes, pt, s, mm, textured)
             _block_light_samples(lights, geo, s, mm)
             _block_shade(opts, lobes, s, mm)
